@@ -1,0 +1,1 @@
+"""ROS-free core of the tiling assembly system: the structure model (paper section 2)."""

@@ -1,0 +1,187 @@
+"""The support relation and the physical rules of a structure (paper section 2.1).
+
+"Precedence constraints, specified by structural stability requirements": tile j supports tile i
+when j's top touches i's bottom over more than a small area; a tile on the floor needs no support.
+Explicit supports in a structure file replace the derived ones for that tile. This module also
+enforces the rules a buildable structure obeys: no tile below the floor, no two tiles
+interpenetrating, no floating tile, no support cycle, and attachment sites that meet.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+
+from tiling_assembly import contacts, polygons
+from tiling_assembly.geometry import PlacedTile
+from tiling_assembly.structure import StructureError
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Geometric tolerances of the rules (metres and square metres)."""
+
+    contact: float = contacts.CONTACT_TOLERANCE
+    overlap: float = contacts.OVERLAP_TOLERANCE
+    min_support_area: float = contacts.MIN_SUPPORT_AREA
+
+
+def _fail(source: str, rule: str, problems: list[tuple[list[int], str]]) -> None:
+    if problems:
+        ids, detail = problems[0]
+        raise StructureError(source, rule, detail, ids, more=len(problems) - 1)
+
+
+def derive_supports(
+    tiles: Mapping[int, PlacedTile],
+    source: str,
+    tolerances: Tolerances = Tolerances(),
+) -> tuple[dict[int, tuple[int, ...]], list[tuple[int, int]]]:
+    """Check the geometry and derive the support relation.
+
+    Returns (supports, touching pairs). Explicit supports (`PlacedTile.explicit_supports`) are
+    taken as given for their tile after checking that they exist and form no cycle.
+    Raises StructureError naming the first broken rule.
+    """
+    ordered = list(tiles.values())
+
+    _fail(
+        source,
+        "below-floor",
+        [
+            ([t.tile_id], f"tile {t.tile_id} reaches {t.aabb[0][2] * 1000:.1f} mm below the floor (z = 0)")
+            for t in ordered
+            if t.aabb[0][2] < -tolerances.contact
+        ],
+    )
+
+    found = contacts.find_contacts(ordered, tolerances.contact)
+    _fail(
+        source,
+        "overlap",
+        [
+            ([c.a, c.b], f"tiles {c.a} and {c.b} overlap by {-c.separation * 1000:.1f} mm")
+            for c in found
+            if c.separation < -tolerances.overlap
+        ],
+    )
+
+    derived: dict[int, set[int]] = {i: set() for i in tiles}
+    for c in found:
+        a, b = tiles[c.a], tiles[c.b]
+        if contacts.shared_face_area(a, b, tolerances.contact) > tolerances.min_support_area:
+            derived[c.b].add(c.a)
+        if contacts.shared_face_area(b, a, tolerances.contact) > tolerances.min_support_area:
+            derived[c.a].add(c.b)
+
+    on_floor = {
+        i for i, t in tiles.items()
+        if contacts.floor_contact_area(t, tolerances.contact) > tolerances.min_support_area
+    }
+
+    unknown = []
+    for i, t in tiles.items():
+        for s in t.explicit_supports or ():
+            if s == i:
+                unknown.append(([i], f"tile {i} lists itself as its own support"))
+            elif s not in tiles:
+                unknown.append(([i], f"tile {i} lists support {s}, which is not a tile of the structure"))
+    _fail(source, "unknown-support", unknown)
+
+    supports: dict[int, tuple[int, ...]] = {}
+    for i, t in tiles.items():
+        if t.explicit_supports is not None:
+            supports[i] = tuple(sorted(set(t.explicit_supports)))
+        elif i in on_floor:
+            supports[i] = ()
+        else:
+            supports[i] = tuple(sorted(derived[i]))
+
+    _fail(
+        source,
+        "floating",
+        [
+            ([i], f"tile {i} rests on nothing: its bottom is {tiles[i].aabb[0][2] * 1000:.1f} mm above "
+                  "the floor and no tile below it shares a face with it")
+            for i in tiles
+            if not supports[i] and i not in on_floor
+        ],
+    )
+
+    graph = nx.DiGraph()
+    graph.add_nodes_from(tiles)
+    graph.add_edges_from((s, i) for i, below in supports.items() for s in below)
+    try:
+        cycle = nx.find_cycle(graph)
+    except nx.NetworkXNoCycle:
+        cycle = []
+    if cycle:
+        ids = [u for u, _ in cycle]
+        chain = " -> ".join(str(u) for u in ids + [ids[0]])
+        _fail(source, "support-cycle", [(ids, f"the supports form a cycle: {chain}")])
+
+    return supports, [(c.a, c.b) for c in found]
+
+
+def _point_on_face(point: np.ndarray, tile: PlacedTile, tolerance: float) -> bool:
+    for k, (n, d) in enumerate(zip(tile.face_normals, tile.face_offsets, strict=True)):
+        if abs(n @ point - d) > tolerance:
+            continue
+        u, v = contacts.plane_basis(n)
+        corners = tile.face_corners(k)
+        flat = np.column_stack([corners @ u, corners @ v])
+        if polygons.point_in_polygon(np.array([point @ u, point @ v]), flat, tolerance):
+            return True
+    return False
+
+
+def world_sites(tile: PlacedTile, sites: np.ndarray) -> np.ndarray:
+    """Attachment sites of a tile in the structure frame."""
+    return sites @ tile.rotation.T + tile.position if len(sites) else np.zeros((0, 3))
+
+
+def check_attachment_sites(
+    tiles: Mapping[int, PlacedTile],
+    sites_of_type: Mapping[str, np.ndarray],
+    supports: Mapping[int, tuple[int, ...]],
+    source: str,
+    tolerance: float = contacts.CONTACT_TOLERANCE,
+) -> None:
+    """Where attachment sites are given, a supported tile and each support must be joined by one.
+
+    Sites must lie on their own tile's surface; for every support pair (j under i) where either
+    type has sites, some site of i must lie on a face of j or some site of j on a face of i (a
+    site meeting a site is a special case of both).
+    """
+    off_surface = []
+    for name, sites in sites_of_type.items():
+        example = next((t for t in tiles.values() if t.type_name == name), None)
+        if example is None:
+            continue
+        for k, site in enumerate(world_sites(example, sites)):
+            if not _point_on_face(site, example, tolerance):
+                users = [t.tile_id for t in tiles.values() if t.type_name == name]
+                off_surface.append(
+                    (users, f"attachment site {k} of tile type '{name}' "
+                         f"({', '.join(f'{c:g}' for c in sites[k])}) is not on the tile's surface")
+                )
+    _fail(source, "attachment", off_surface)
+
+    unmet = []
+    for i, below in supports.items():
+        upper = tiles[i]
+        upper_sites = world_sites(upper, sites_of_type.get(upper.type_name, np.zeros((0, 3))))
+        for j in below:
+            lower = tiles[j]
+            lower_sites = world_sites(lower, sites_of_type.get(lower.type_name, np.zeros((0, 3))))
+            if len(upper_sites) == 0 and len(lower_sites) == 0:
+                continue
+            if any(_point_on_face(p, lower, tolerance) for p in upper_sites) or any(
+                _point_on_face(p, upper, tolerance) for p in lower_sites
+            ):
+                continue
+            unmet.append(([i, j], f"no attachment site joins tile {i} to its support {j}"))
+    _fail(source, "attachment", unmet)

@@ -1,0 +1,55 @@
+"""The time model of assembly work (paper section 2.1 and its reference [11]).
+
+One tile costs its robot the trip between the parts cache of the tile's type and the tile, there
+and back, plus the time to pick it up and to place it. The planner balances these costs, the
+schedule simulation and the robots' bids (section 2.3: w_i, the remaining workload) use them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+from tiling_assembly.structure import Structure
+
+
+@dataclass(frozen=True)
+class TimeModel:
+    """Durations of assembly work (seconds) and the robots' travel speed (m/s)."""
+
+    pick_time: float = 8.0  # s, find and grasp a tile at its cache
+    place_time: float = 12.0  # s, lower, release and retract at the structure
+    travel_speed: float = 0.15  # m/s, mean speed of a base between cache and structure
+    type_place_time: Mapping[str, float] = field(default_factory=dict)  # s, per-type override
+
+    def __post_init__(self) -> None:
+        for name, value in (("pick_time", self.pick_time), ("place_time", self.place_time)):
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a non-negative number of seconds, got {value}")
+        if not (math.isfinite(self.travel_speed) and self.travel_speed > 0):
+            raise ValueError(f"travel_speed must be a positive number of m/s, got {self.travel_speed}")
+        for name, value in self.type_place_time.items():
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"type_place_time[{name}] must be a non-negative number of seconds")
+
+    def handling_time(self, type_name: str) -> float:
+        """Pick plus place time of one tile of `type_name` (s)."""
+        return self.pick_time + self.type_place_time.get(type_name, self.place_time)
+
+    def cache_distance(self, structure: Structure, tile_id: int) -> float:
+        """Floor distance from the tile's type cache to the tile's centre (m); 0 without a cache."""
+        tile = structure.tiles[tile_id]
+        cache = structure.caches.get(tile.type_name)
+        if cache is None:
+            return 0.0
+        return math.hypot(tile.centroid[0] - cache[0], tile.centroid[1] - cache[1])
+
+    def tile_cost(self, structure: Structure, tile_id: int) -> float:
+        """Seconds a robot spends on one tile: to the cache and back, pick and place."""
+        travel = 2.0 * self.cache_distance(structure, tile_id) / self.travel_speed
+        return self.handling_time(structure.tiles[tile_id].type_name) + travel
+
+    def workload(self, structure: Structure, tile_ids: Iterable[int]) -> float:
+        """Total cost of a set of tiles (s): a robot's workload w_i."""
+        return sum(self.tile_cost(structure, t) for t in tile_ids)
