@@ -1,0 +1,373 @@
+"""assembly_node: one assembly robot of the team (paper sections 2.1, 2.3 and 3.1).
+
+A thin adapter around `executor.PlanExecutor` and `bidding.compute_bid`. Runs in the robot's
+namespace (`/robot1`, …). In: the latched `/structure` and `/plan`, `/placement_reports` of the
+whole team, `/auction/announcements` and `/auction/awards`. Out: the `place_tile` action goals to
+its robot (real M3 driver or simulated robot), `/placement_reports`, `/auction/bids`,
+`/auction/acceptances`, and a `/robot_status` heartbeat on the wall clock (so that a robot whose
+process hangs or dies is noticed even while simulated time runs fast).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import rclpy
+from action_msgs.msg import GoalStatus
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, PoseStamped
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.action import ActionClient
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.msg import (
+    AssemblyPlan,
+    AuctionAcceptance,
+    AuctionAnnouncement,
+    AuctionAward,
+    AuctionBid,
+    PlacementReport,
+    RobotStatus,
+    Structure,
+)
+
+from assembly_node.bidding import compute_bid
+from assembly_node.executor import Outcome, PlanExecutor, StepKind
+from tiling_assembly.messages import pose_of, structure_from_msg
+from tiling_assembly.structure import StructureError
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly.time_model import TimeModel
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+
+STATE_NAMES = {v: k for k, v in vars(RobotStatus).items() if k.isupper() and isinstance(v, int)}
+
+
+def wall_stamp_to_seconds(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+class AssemblyNode(Node):
+    def __init__(self) -> None:
+        super().__init__("assembly_node")
+        self._declare_parameters()
+        self.robot_name = self._robot_name()
+        self.time_model = TimeModel(
+            pick_time=self.get_parameter("pick_time").value,
+            place_time=self.get_parameter("place_time").value,
+            travel_speed=self.get_parameter("travel_speed").value,
+        )
+        self.weight_supported = float(self.get_parameter("weight_supported").value)
+        self.weight_distance = float(self.get_parameter("weight_distance").value)
+        self.max_attempts = int(self.get_parameter("max_attempts").value)
+        self.retry_delay = float(self.get_parameter("retry_delay").value)
+        self.strict_order = bool(self.get_parameter("strict_order").value)
+        self.action_timeout = float(self.get_parameter("action_timeout").value)
+        self.own_caches = self._cache_overrides()
+
+        self.executor_state: PlanExecutor | None = None
+        self.pending_plan: AssemblyPlan | None = None
+        self.retry_after = 0.0  # s of node time before the next attempt may start
+        self.last_wait_logged: tuple[int, ...] = ()
+        self.goal_handle = None
+        self.goal_sent_at = 0.0  # node time the running place action was sent
+        self.server_lost_since: float | None = None  # wall time the action server went away
+
+        self.report_pub = self.create_publisher(PlacementReport, "/placement_reports", REPORTS)
+        self.bid_pub = self.create_publisher(AuctionBid, "/auction/bids", COORDINATION)
+        self.accept_pub = self.create_publisher(AuctionAcceptance, "/auction/acceptances", COORDINATION)
+        self.status_pub = self.create_publisher(RobotStatus, "/robot_status", COORDINATION)
+        self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
+        self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
+        self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
+        self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
+        self.create_subscription(AuctionAward, "/auction/awards", self.on_award, COORDINATION)
+        self.place_client = ActionClient(self, PlaceTile, "place_tile")
+
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(float(self.get_parameter("heartbeat_period").value), self.publish_status, clock=steady)
+        self.create_timer(0.25, self.step, clock=steady)
+
+        structure_file = self.get_parameter("structure_file").value
+        if structure_file:
+            self._set_structure(load_structure(structure_file))
+        self.get_logger().info(f"{self.robot_name} ready; waiting for the plan on /plan")
+
+    # --- parameters -------------------------------------------------------------------------
+    def _declare_parameters(self) -> None:
+        def declare(name: str, default: object, description: str) -> None:
+            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+
+        declare("robot_name", "", "Name in plans and auctions; empty: the namespace without '/'.")
+        declare("structure_file", "", "Structure YAML to use before /structure arrives; empty: wait.")
+        declare("pick_time", 8.0, "Time model: s to find and grasp a tile at its cache.")
+        declare("place_time", 12.0, "Time model: s to place a tile.")
+        declare("travel_speed", 0.15, "Time model: mean base speed between cache and structure, m/s.")
+        declare("weight_supported", 30.0, "A in b = w - A*c + B*d: s per own tile the missing one supports.")
+        declare("weight_distance", 10.0, "B in b = w - A*c + B*d: s per metre from own cache to the tile.")
+        declare("max_attempts", 3, "Place actions per tile before giving it up for auction.")
+        declare("retry_delay", 5.0, "s (node clock) to wait before retrying a failed placement.")
+        declare("strict_order", False, "Wait on the next planned tile instead of placing a later ready one.")
+        declare("action_timeout", 900.0, "s (node clock) a place action may take before it counts as failed.")
+        declare("heartbeat_period", 0.2, "s of wall-clock time between two /robot_status heartbeats.")
+        declare("cache_types", [""], "Tile types with a cache of this robot's own (parallel to cache_xy).")
+        declare("cache_xy", [0.0], "x1, y1, x2, y2, ... of this robot's own caches in map (m).")
+
+    def _robot_name(self) -> str:
+        name = self.get_parameter("robot_name").value or self.get_namespace().strip("/")
+        if not name or "/" in name:
+            raise ValueError(
+                f"robot_name is '{name}': run the node in a robot namespace (e.g. /robot1) or set robot_name"
+            )
+        return name
+
+    def _cache_overrides(self) -> dict[str, tuple[float, float]]:
+        types = [t for t in self.get_parameter("cache_types").value if t]
+        xy = list(self.get_parameter("cache_xy").value) if types else []
+        if len(xy) != 2 * len(types):
+            raise ValueError(f"cache_xy needs 2 numbers per cache type ({len(types)} types), got {len(xy)}")
+        return {t: (float(xy[2 * k]), float(xy[2 * k + 1])) for k, t in enumerate(types)}
+
+    def cache_of(self, type_name: str) -> tuple[float, float] | None:
+        assert self.executor_state is not None
+        return self.own_caches.get(type_name, self.executor_state.structure.caches.get(type_name))
+
+    # --- inputs -------------------------------------------------------------------------------
+    def _set_structure(self, structure) -> None:  # type: ignore[no-untyped-def]
+        if self.executor_state is not None and self.executor_state.structure.name == structure.name:
+            return
+        self.executor_state = PlanExecutor(
+            self.robot_name, structure, max_attempts=self.max_attempts, strict_order=self.strict_order
+        )
+        if self.pending_plan is not None:
+            plan, self.pending_plan = self.pending_plan, None
+            self.on_plan(plan)
+
+    def on_structure(self, msg: Structure) -> None:
+        try:
+            self._set_structure(structure_from_msg(msg, "/structure"))
+        except StructureError as error:
+            self.get_logger().error(f"ignoring the structure on /structure: {error}")
+
+    def on_plan(self, msg: AssemblyPlan) -> None:
+        if self.executor_state is None:
+            self.pending_plan = msg
+            return
+        task = next((t for t in msg.tasks if t.robot_name == self.robot_name), None)
+        tiles = list(task.tile_ids) if task is not None else []
+        if self.executor_state.adopt_plan(msg.revision, tiles):
+            self.get_logger().info(
+                f"plan revision {msg.revision}: {len(self.executor_state.remaining)} tiles to place "
+                f"{list(self.executor_state.remaining)}"
+            )
+            self.step()
+
+    def on_report(self, msg: PlacementReport) -> None:
+        if self.executor_state is None or msg.outcome != PlacementReport.OUTCOME_PLACED:
+            return
+        self.executor_state.note_placed(msg.tile_id)
+        self.step()
+
+    def on_announcement(self, msg: AuctionAnnouncement) -> None:
+        state = self.executor_state
+        if state is None:
+            return
+        if msg.reason == AuctionAnnouncement.REASON_MISSING:
+            state.note_missing(msg.tile_id)
+        if self.robot_name not in msg.bidders or msg.tile_id not in state.structure.tiles:
+            return
+        tile_type = state.structure.tiles[msg.tile_id].type_name
+        bid = compute_bid(
+            state.structure, self.time_model, state.task(), msg.tile_id, self.cache_of(tile_type),
+            self.weight_supported, self.weight_distance,
+        )
+        out = AuctionBid(
+            auction_id=msg.auction_id, robot_name=self.robot_name, bid=bid.value, workload=bid.workload,
+            supported_count=bid.supported_count, cache_distance=bid.cache_distance,
+        )
+        out.header.stamp = self.get_clock().now().to_msg()
+        self.bid_pub.publish(out)
+        self.get_logger().info(
+            f"bid {bid.value:.1f} for tile {msg.tile_id} (auction {msg.auction_id}): w={bid.workload:.1f} s, "
+            f"c={bid.supported_count}, d={bid.cache_distance:.2f} m"
+        )
+
+    def on_award(self, msg: AuctionAward) -> None:
+        state = self.executor_state
+        if state is None or msg.winner != self.robot_name:
+            return
+        received = time.time()
+        index = state.award(msg.tile_id)
+        latency = 0.0
+        if msg.detection_wall_stamp.sec or msg.detection_wall_stamp.nanosec:
+            latency = received - wall_stamp_to_seconds(msg.detection_wall_stamp)
+        ack = AuctionAcceptance(
+            auction_id=msg.auction_id, tile_id=msg.tile_id, robot_name=self.robot_name, award_latency=latency
+        )
+        ack.header.stamp = self.get_clock().now().to_msg()
+        self.accept_pub.publish(ack)
+        self.get_logger().info(
+            f"won tile {msg.tile_id} (auction {msg.auction_id}); placing it at position {index} of my task"
+            + (f"; {latency * 1000:.1f} ms after detection" if latency else "")
+        )
+        self.step()
+
+    # --- acting -------------------------------------------------------------------------------
+    def now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def step(self) -> None:
+        state = self.executor_state
+        if state is None:
+            return
+        if state.in_flight:
+            self.watch_running_goal(state.in_flight)
+            return
+        if self.now() < self.retry_after:
+            return
+        decision = state.next_step()
+        if decision.kind is StepKind.WAIT and decision.waiting_for != self.last_wait_logged:
+            self.last_wait_logged = decision.waiting_for
+            self.get_logger().info(f"tile {decision.tile_id} waits for supports {list(decision.waiting_for)}")
+        if decision.kind is not StepKind.PLACE:
+            return
+        if not self.place_client.server_is_ready():
+            self.get_logger().warn(
+                "place_tile action server not available; is the robot driver running?", throttle_duration_sec=5.0
+            )
+            return
+        self.send_goal(decision.tile_id)
+
+    def watch_running_goal(self, tile_id: int) -> None:
+        """A robot that stops answering must not hold its tile forever."""
+        if self.place_client.server_is_ready():
+            self.server_lost_since = None
+        elif self.server_lost_since is None:
+            self.server_lost_since = time.monotonic()
+        lost = self.server_lost_since is not None and time.monotonic() - self.server_lost_since > 3.0
+        overdue = self.now() - self.goal_sent_at > self.action_timeout
+        if not (lost or overdue):
+            return
+        if self.goal_handle is not None:
+            self.goal_handle.cancel_goal_async()
+        self.goal_handle = None
+        self.server_lost_since = None
+        why = "the robot stopped answering" if lost else f"no result within {self.action_timeout:.0f} s"
+        self.on_placement_done(tile_id, False, why)
+
+    def send_goal(self, tile_id: int) -> None:
+        state = self.executor_state
+        assert state is not None
+        tile = state.structure.tiles[tile_id]
+        goal = PlaceTile.Goal(tile_id=tile_id, tile_type=tile.type_name)
+        goal.pose = PoseStamped()
+        goal.pose.header.frame_id = state.structure.frame_id
+        goal.pose.header.stamp = self.get_clock().now().to_msg()
+        goal.pose.pose = pose_of(tile)
+        cache = self.cache_of(tile.type_name) or (0.0, 0.0)
+        goal.cache = Point(x=cache[0], y=cache[1], z=0.0)
+        state.start(tile_id)
+        self.goal_sent_at = self.now()
+        self.get_logger().info(f"placing tile {tile_id} ({tile.type_name}), attempt {state.attempts[tile_id]}")
+        future = self.place_client.send_goal_async(goal)
+        future.add_done_callback(lambda f, t=tile_id: self.on_goal_response(t, f))
+
+    def on_goal_response(self, tile_id: int, future) -> None:  # type: ignore[no-untyped-def]
+        if self.executor_state is None or self.executor_state.in_flight != tile_id:
+            return  # given up on already
+        handle = future.result()
+        if handle is None or not handle.accepted:
+            self.on_placement_done(tile_id, False, "the robot refused the goal")
+            return
+        self.goal_handle = handle
+        handle.get_result_async().add_done_callback(lambda f, t=tile_id: self.on_result(t, f))
+
+    def on_result(self, tile_id: int, future) -> None:  # type: ignore[no-untyped-def]
+        if self.executor_state is None or self.executor_state.in_flight != tile_id:
+            return  # given up on already
+        self.goal_handle = None
+        response = future.result()
+        result = response.result
+        ok = response.status == GoalStatus.STATUS_SUCCEEDED and result.error_code in (
+            PlaceTile.Result.SUCCEEDED,
+            PlaceTile.Result.ALREADY_PRESENT,
+        )
+        self.on_placement_done(tile_id, ok, result.message or f"goal status {response.status}")
+
+    def on_placement_done(self, tile_id: int, success: bool, reason: str) -> None:
+        state = self.executor_state
+        assert state is not None
+        attempts = state.attempts.get(tile_id, 1)
+        outcome = state.finish(tile_id, success)
+        if outcome is Outcome.PLACED:
+            self.publish_report(tile_id, PlacementReport.OUTCOME_PLACED, attempts, "")
+            self.get_logger().info(f"placed tile {tile_id}")
+        elif outcome is Outcome.RETRY:
+            self.retry_after = self.now() + self.retry_delay
+            self.get_logger().warn(f"placing tile {tile_id} failed ({reason}); retrying in {self.retry_delay:.0f} s")
+        else:
+            self.publish_report(tile_id, PlacementReport.OUTCOME_FAILED, attempts, reason)
+            self.get_logger().error(f"gave up tile {tile_id} after {attempts} attempts: {reason}")
+        self.publish_status()
+        self.step()
+
+    def publish_report(self, tile_id: int, outcome: int, attempts: int, reason: str) -> None:
+        state = self.executor_state
+        assert state is not None
+        report = PlacementReport(
+            robot_name=self.robot_name, tile_id=tile_id, outcome=outcome, attempts=attempts, reason=reason
+        )
+        report.header.stamp = self.get_clock().now().to_msg()
+        report.header.frame_id = state.structure.frame_id
+        report.pose = pose_of(state.structure.tiles[tile_id])
+        self.report_pub.publish(report)
+
+    def publish_status(self) -> None:
+        status = RobotStatus(robot_name=self.robot_name)
+        status.header.stamp = self.get_clock().now().to_msg()
+        state = self.executor_state
+        if state is None:
+            status.state = RobotStatus.IDLE
+        else:
+            kind = state.next_step().kind
+            status.state = {
+                StepKind.IDLE: RobotStatus.IDLE,
+                StepKind.WAIT: RobotStatus.WAITING,
+                StepKind.BUSY: RobotStatus.PLACING,
+                StepKind.PLACE: RobotStatus.WAITING,
+                StepKind.DONE: RobotStatus.DONE,
+            }[kind]
+            status.current_tile = state.in_flight
+            status.plan_revision = max(state.plan_revision, 0)
+            status.remaining_tiles = state.task()
+            status.placed_tiles = list(state.placed_by_me)
+            status.remaining_workload = self.time_model.workload(state.structure, state.task())
+        self.status_pub.publish(status)
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = AssemblyNode()
+        rclpy.spin(node)
+    except (ValueError, StructureError) as error:
+        print(f"assembly_node: {error}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

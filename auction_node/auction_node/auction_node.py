@@ -1,0 +1,300 @@
+"""auction_node: finds missing tiles and auctions them to the team (paper section 2.3).
+
+A thin adapter around `mismatch.MismatchDetector`, `auction.AuctionBook` and `liveness.Liveness`.
+In: `/placement_reports` (q), `/tile_states` (q^s), `/auction/bids`, `/auction/acceptances`,
+`/robot_status` heartbeats. Out: `/auction/announcements`, `/auction/awards` and one readable line
+per decision on `/auction/decisions` (std_msgs/String) and in the log.
+
+Beyond the paper: a robot whose heartbeat stops is left out of auctions and its unplaced tiles go
+to the others through the planner's `/replan` service (a fresh partition and order of everything
+not yet placed, for the robots still alive), which keeps the team's work balanced and its orders
+consistent with precedence; if the planner does not answer, its tiles are auctioned one by one
+instead. A tile a robot gave up on is auctioned among the others.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+import rclpy
+from builtin_interfaces.msg import Time
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+from tiling_assembly_msgs.msg import (
+    AuctionAcceptance,
+    AuctionAnnouncement,
+    AuctionAward,
+    AuctionBid,
+    PlacementReport,
+    RobotStatus,
+    Structure,
+    TileState,
+    TileStateArray,
+)
+from tiling_assembly_msgs.srv import Replan
+
+from auction_node.auction import Auction, AuctionBook, Award
+from auction_node.liveness import Liveness
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector
+from tiling_assembly.messages import pose_of, structure_from_msg
+from tiling_assembly.structure import Structure as StructureModel
+from tiling_assembly.structure import StructureError
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+DECISIONS = QoSProfile(depth=200, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+
+SENSING = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING}  # anything else: undetermined
+REASONS = {
+    AuctionAnnouncement.REASON_MISSING: "missing",
+    AuctionAnnouncement.REASON_ROBOT_LOST: "its robot was lost",
+    AuctionAnnouncement.REASON_GAVE_UP: "given up",
+}
+
+
+@dataclass
+class PendingAward:
+    award: Award
+    reason: int
+    sent_wall: float
+    detection_wall: float
+
+
+class AuctionNode(Node):
+    def __init__(self) -> None:
+        super().__init__("auction_node")
+        self._declare_parameters()
+        self.detector = MismatchDetector(confirmations=int(self.get_parameter("confirmations").value))
+        self.book = AuctionBook(bid_window=float(self.get_parameter("bid_window").value))
+        self.liveness = Liveness(timeout=float(self.get_parameter("liveness_timeout").value))
+        self.accept_timeout = float(self.get_parameter("acceptance_timeout").value)
+        self.reopen_delay = float(self.get_parameter("reopen_delay").value)
+        self.lost_robot_policy = str(self.get_parameter("lost_robot_policy").value)
+        if self.lost_robot_policy not in ("replan", "auction"):
+            raise ValueError(f"lost_robot_policy must be 'replan' or 'auction', got '{self.lost_robot_policy}'")
+        if self.book.bid_window <= 0 or self.liveness.timeout <= 0:
+            raise ValueError("bid_window and liveness_timeout must be positive")
+
+        self.structure: StructureModel | None = None
+        self.status: dict[str, RobotStatus] = {}
+        self.excluded: dict[int, str] = {}  # auction id -> robot left out (it gave the tile up)
+        self.detected_wall: dict[int, float] = {}  # tile -> wall time its mismatch was detected
+        self.awaiting_acceptance: dict[int, PendingAward] = {}  # auction id -> award
+        self.reopen: list[tuple[float, int, int]] = []  # (node time, tile, reason)
+        self.replan_in_flight = False
+
+        self.announce_pub = self.create_publisher(AuctionAnnouncement, "/auction/announcements", COORDINATION)
+        self.award_pub = self.create_publisher(AuctionAward, "/auction/awards", COORDINATION)
+        self.decision_pub = self.create_publisher(String, "/auction/decisions", DECISIONS)
+        self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
+        self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
+        self.create_subscription(TileStateArray, "/tile_states", self.on_tile_states, COORDINATION)
+        self.create_subscription(AuctionBid, "/auction/bids", self.on_bid, COORDINATION)
+        self.create_subscription(AuctionAcceptance, "/auction/acceptances", self.on_acceptance, COORDINATION)
+        self.create_subscription(RobotStatus, "/robot_status", self.on_status, COORDINATION)
+        self.replan_client = self.create_client(Replan, "/replan")
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(0.02, self.tick, clock=steady)
+        self.get_logger().info("auction node ready")
+
+    def _declare_parameters(self) -> None:
+        def declare(name: str, default: object, description: str) -> None:
+            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+
+        declare("confirmations", 1, "Consecutive scans that must call a placed tile missing (paper: 1).")
+        declare("bid_window", 2.0, "s (node clock) from an announcement to its deadline.")
+        declare("liveness_timeout", 1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
+        declare("acceptance_timeout", 2.0, "s of wall-clock time for a winner to accept before re-auctioning.")
+        declare("reopen_delay", 5.0, "s (node clock) before an auction nobody bid in is reopened.")
+        declare("lost_robot_policy", "replan", "'replan' (planner's /replan service) or 'auction' per tile.")
+
+    # --- helpers ------------------------------------------------------------------------------
+    def now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def decide(self, line: str, error: bool = False) -> None:
+        (self.get_logger().warn if error else self.get_logger().info)(line)
+        self.decision_pub.publish(String(data=line))
+
+    def announce(self, tile_id: int, reason: int, exclude: str = "") -> None:
+        if self.structure is None or tile_id not in self.structure.tiles:
+            return
+        invited = [r for r in self.liveness.alive() if r != exclude] or self.liveness.alive()
+        if not invited:
+            self.decide(f"tile {tile_id} ({REASONS[reason]}): no robot alive to bid; retrying later", error=True)
+            self.reopen.append((self.now() + self.reopen_delay, tile_id, reason))
+            return
+        auction = self.book.open(tile_id, reason, self.now(), invited)
+        if auction is None:
+            return
+        if exclude:
+            self.excluded[auction.auction_id] = exclude
+        tile = self.structure.tiles[tile_id]
+        msg = AuctionAnnouncement(
+            auction_id=auction.auction_id, tile_id=tile_id, tile_type=tile.type_name, reason=reason,
+            bidders=sorted(auction.invited),
+        )
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = self.structure.frame_id
+        msg.tile_pose = pose_of(tile)
+        msg.deadline = rclpy.time.Time(nanoseconds=int(auction.deadline * 1e9)).to_msg()
+        self.announce_pub.publish(msg)
+        self.decide(
+            f"auction {auction.auction_id} opened for tile {tile_id} ({tile.type_name}, {REASONS[reason]}); "
+            f"bidders: {', '.join(sorted(auction.invited))}"
+        )
+
+    # --- inputs -------------------------------------------------------------------------------
+    def on_structure(self, msg: Structure) -> None:
+        try:
+            self.structure = structure_from_msg(msg, "/structure")
+        except StructureError as error:
+            self.get_logger().error(f"ignoring the structure on /structure: {error}")
+
+    def on_report(self, msg: PlacementReport) -> None:
+        if msg.outcome == PlacementReport.OUTCOME_PLACED:
+            self.detector.placed(msg.tile_id)
+        elif msg.outcome == PlacementReport.OUTCOME_FAILED:
+            self.detector.unplaced(msg.tile_id)
+            self.decide(f"{msg.robot_name} gave up tile {msg.tile_id}: {msg.reason}", error=True)
+            self.announce(msg.tile_id, AuctionAnnouncement.REASON_GAVE_UP, exclude=msg.robot_name)
+
+    def on_tile_states(self, msg: TileStateArray) -> None:
+        detected = time.time()
+        sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states}
+        for tile_id in self.detector.sensed(sensing):
+            self.detected_wall[tile_id] = detected
+            self.decide(f"tile {tile_id} was placed but the scan says missing (q * q^s = -1)")
+            self.announce(tile_id, AuctionAnnouncement.REASON_MISSING)
+
+    def on_bid(self, msg: AuctionBid) -> None:
+        refused = self.book.bid(msg.auction_id, msg.robot_name, msg.bid, self.now())
+        if refused:
+            self.get_logger().warn(f"bid refused: {refused}")
+            return
+        self.close_auctions()
+
+    def on_acceptance(self, msg: AuctionAcceptance) -> None:
+        pending = self.awaiting_acceptance.pop(msg.auction_id, None)
+        if pending is not None and msg.award_latency > 0:
+            self.get_logger().info(
+                f"{msg.robot_name} accepted tile {msg.tile_id} {msg.award_latency * 1000:.1f} ms after detection"
+            )
+
+    def on_status(self, msg: RobotStatus) -> None:
+        self.status[msg.robot_name] = msg
+        if self.liveness.heard(msg.robot_name, time.monotonic()):
+            self.decide(f"{msg.robot_name} is back: it takes part in auctions again")
+
+    # --- time-driven --------------------------------------------------------------------------
+    def tick(self) -> None:
+        for robot in self.liveness.newly_lost(time.monotonic()):
+            self.robot_lost(robot)
+        self.close_auctions()
+        wall = time.monotonic()
+        for auction_id, pending in list(self.awaiting_acceptance.items()):
+            if wall - pending.sent_wall > self.accept_timeout:
+                del self.awaiting_acceptance[auction_id]
+                self.decide(
+                    f"{pending.award.winner} did not accept tile {pending.award.tile_id} "
+                    f"(auction {auction_id}); auctioning it again", error=True,
+                )
+                self.announce(pending.award.tile_id, pending.reason, exclude=pending.award.winner)
+        due = [entry for entry in self.reopen if entry[0] <= self.now()]
+        self.reopen = [entry for entry in self.reopen if entry[0] > self.now()]
+        for _, tile_id, reason in due:
+            self.announce(tile_id, reason)
+
+    def close_auctions(self) -> None:
+        reasons = {a.auction_id: a.reason for a in self.book.open_auctions.values()}
+        for award in self.book.close_ready(self.now()):
+            self.publish_award(award, reasons[award.auction_id])
+
+    def publish_award(self, award: Award, reason: int) -> None:
+        msg = AuctionAward(
+            auction_id=award.auction_id, tile_id=award.tile_id, winner=award.winner,
+            winning_bid=award.winning_bid if award.winner else 0.0, bidders=list(award.bidders),
+            bids=list(award.bids), decision=award.decision,
+        )
+        msg.header.stamp = self.get_clock().now().to_msg()
+        detected = self.detected_wall.pop(award.tile_id, 0.0) if reason == AuctionAnnouncement.REASON_MISSING else 0.0
+        if detected:
+            msg.detection_wall_stamp = Time(sec=int(detected), nanosec=int((detected % 1) * 1e9))
+        self.award_pub.publish(msg)
+        self.decide(award.decision, error=not award.winner)
+        if award.winner:
+            self.awaiting_acceptance[award.auction_id] = PendingAward(award, reason, time.monotonic(), detected)
+        else:
+            self.reopen.append((self.now() + self.reopen_delay, award.tile_id, reason))
+
+    def robot_lost(self, robot: str) -> None:
+        self.book.forget_bidder(robot)
+        last = self.status.get(robot)
+        tiles = list(last.remaining_tiles) if last is not None else []
+        self.decide(
+            f"{robot} lost (no heartbeat for {self.liveness.timeout:.1f} s); its unplaced tiles "
+            f"{tiles} go to {', '.join(self.liveness.alive()) or 'nobody'} by {self.lost_robot_policy}",
+            error=True,
+        )
+        for auction_id, pending in list(self.awaiting_acceptance.items()):
+            if pending.award.winner == robot:
+                del self.awaiting_acceptance[auction_id]
+        if not self.liveness.alive():
+            return
+        if self.lost_robot_policy == "replan" and self.replan_client.service_is_ready():
+            self.request_replan(robot, tiles)
+        else:
+            for tile_id in tiles:
+                self.announce(tile_id, AuctionAnnouncement.REASON_ROBOT_LOST)
+
+    def request_replan(self, robot: str, tiles: list[int]) -> None:
+        in_flight = [s.current_tile for r, s in self.status.items() if r in self.liveness.alive() and s.current_tile]
+        request = Replan.Request(
+            placed_tile_ids=sorted(set(self.detector.placed_tiles()) | set(in_flight)),
+            available_robots=self.liveness.alive(),
+        )
+        future = self.replan_client.call_async(request)
+
+        def done(f) -> None:  # type: ignore[no-untyped-def]
+            response = f.result()
+            if response is not None and response.success:
+                self.decide(
+                    f"replanned after losing {robot}: plan revision {response.plan.revision} for "
+                    f"{', '.join(t.robot_name for t in response.plan.tasks)}"
+                )
+                return
+            why = response.message if response is not None else "no answer"
+            self.decide(f"replan after losing {robot} failed ({why}); auctioning its tiles", error=True)
+            for tile_id in tiles:
+                self.announce(tile_id, AuctionAnnouncement.REASON_ROBOT_LOST)
+
+        future.add_done_callback(done)
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = AuctionNode()
+        rclpy.spin(node)
+    except ValueError as error:
+        print(f"auction_node: {error}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

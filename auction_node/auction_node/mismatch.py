@@ -1,0 +1,65 @@
+"""Detecting missing tiles from the state and sensing vectors (paper section 2.3).
+
+"The VI-robot monitors these messages to maintain a state vector q, where q_i is 1 if the block
+has been placed and 0 otherwise. After each placement, the VI-robot reports a sensing vector q^s,
+where q^s_i is 1 if the block is definitely present, -1 if it is missing, and 0 if the presence
+or absence of the block cannot be determined. Then, if q_i * q^s_i = -1, a block that a robot
+claims to have placed is determined to be missing."
+
+`confirmations` > 1 asks for that many consecutive missing observations first (the paper acts on
+one). A tile found missing is no longer placed (q_i = 0) until a robot reports it placed again,
+and its old sensing value is forgotten then, so a stale -1 cannot flag the new tile.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+PRESENT = 1
+UNDETERMINED = 0
+MISSING = -1
+
+
+@dataclass
+class MismatchDetector:
+    """The vectors q and q^s over tile ids, and the rule q_i * q^s_i = -1."""
+
+    confirmations: int = 1
+    q: dict[int, int] = field(default_factory=dict)
+    q_sensed: dict[int, int] = field(default_factory=dict)
+    missing_streak: dict[int, int] = field(default_factory=dict)
+
+    def placed(self, tile_id: int) -> None:
+        """A robot reported `tile_id` placed."""
+        self.q[tile_id] = 1
+        self.q_sensed[tile_id] = UNDETERMINED
+        self.missing_streak.pop(tile_id, None)
+
+    def unplaced(self, tile_id: int) -> None:
+        """`tile_id` is known not to be in the structure (found missing, or given up)."""
+        self.q[tile_id] = 0
+        self.missing_streak.pop(tile_id, None)
+
+    def sensed(self, states: Mapping[int, int]) -> list[int]:
+        """Take one sensing vector (tile id -> 1, 0 or -1); returns the tiles now missing."""
+        found = []
+        for tile_id, value in states.items():
+            self.q_sensed[tile_id] = value
+            if value != MISSING:
+                self.missing_streak.pop(tile_id, None)
+                continue
+            if self.q.get(tile_id, 0) * value != -1:
+                continue
+            self.missing_streak[tile_id] = self.missing_streak.get(tile_id, 0) + 1
+            if self.missing_streak[tile_id] >= self.confirmations:
+                found.append(tile_id)
+                self.unplaced(tile_id)
+        return sorted(found)
+
+    def placed_tiles(self) -> list[int]:
+        return sorted(t for t, v in self.q.items() if v == 1)
+
+    def state_of(self, tile_ids: Iterable[int]) -> dict[int, tuple[int, int]]:
+        """(q_i, q^s_i) of each tile, for reports."""
+        return {t: (self.q.get(t, 0), self.q_sensed.get(t, 0)) for t in tile_ids}

@@ -1,0 +1,40 @@
+"""The bid b_i = w_i - A*c_i + B*d_ij (paper section 2.3, equation 1)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from conftest import STRUCTURES
+
+from assembly_node.bidding import compute_bid
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly.time_model import TimeModel
+
+PAPER = load_structure(STRUCTURES / "paper_14.yaml")
+MODEL = TimeModel(pick_time=8.0, place_time=12.0, travel_speed=0.2)
+
+
+def test_bid_terms_and_value() -> None:
+    remaining = [12, 14, 10]
+    bid = compute_bid(PAPER, MODEL, remaining, 5, (1.0, -0.6), weight_supported=30.0, weight_distance=10.0)
+    expected_w = sum(MODEL.tile_cost(PAPER, t) for t in remaining)
+    assert bid.workload == pytest.approx(expected_w)
+    assert bid.supported_count == 2  # 5 directly supports 10 and 12, not 14
+    centre = PAPER.tiles[5].centroid
+    assert bid.cache_distance == pytest.approx(math.hypot(centre[0] - 1.0, centre[1] + 0.6))
+    assert bid.value == pytest.approx(expected_w - 30.0 * 2 + 10.0 * bid.cache_distance)
+
+
+def test_the_tile_itself_is_not_part_of_the_workload() -> None:
+    with_tile = compute_bid(PAPER, MODEL, [5, 12], 5, None, 30.0, 10.0)
+    without = compute_bid(PAPER, MODEL, [12], 5, None, 30.0, 10.0)
+    assert with_tile == without
+    assert with_tile.cache_distance == 0.0
+
+
+def test_robot_waiting_for_the_tile_with_a_near_cache_bids_lower() -> None:
+    busy_far = compute_bid(PAPER, MODEL, [1, 2, 3], 4, (-3.0, 3.0), 30.0, 10.0)
+    waiting_near = compute_bid(PAPER, MODEL, [11, 1, 2], 4, (-0.2, 0.0), 30.0, 10.0)
+    assert waiting_near.supported_count == 1 and busy_far.supported_count == 0
+    assert waiting_near.value < busy_far.value

@@ -1,0 +1,135 @@
+"""The assembly robot's plan executor (ROS-free)."""
+
+from __future__ import annotations
+
+import pytest
+from conftest import STRUCTURES
+
+from assembly_node.executor import Outcome, PlanExecutor, StepKind
+from tiling_assembly.structure_file import load_structure
+
+PAPER = load_structure(STRUCTURES / "paper_14.yaml")
+ROBOT1 = [3, 6, 4, 9, 11, 13]
+ROBOT2 = [7, 5, 8, 10, 12, 14, 1, 2]
+
+
+def executor(tiles: list[int], strict: bool = False, attempts: int = 3) -> PlanExecutor:
+    state = PlanExecutor("robot1", PAPER, max_attempts=attempts, strict_order=strict)
+    state.adopt_plan(0, tiles)
+    return state
+
+
+def place(state: PlanExecutor, tile: int) -> None:
+    step = state.next_step()
+    assert (step.kind, step.tile_id) == (StepKind.PLACE, tile)
+    state.start(tile)
+    assert state.next_step().kind is StepKind.BUSY
+    assert state.finish(tile, True) is Outcome.PLACED
+
+
+def test_idle_until_a_plan_arrives() -> None:
+    state = PlanExecutor("robot1", PAPER)
+    assert state.next_step().kind is StepKind.IDLE
+
+
+def test_places_in_order_and_waits_for_supports_of_other_robots() -> None:
+    state = executor(ROBOT1, strict=True)
+    place(state, 3)
+    place(state, 6)
+    step = state.next_step()  # octagon 4 rests on 1, 2 (robot 2's) as well
+    assert step.kind is StepKind.WAIT and step.tile_id == 4 and step.waiting_for == (1, 2)
+    state.note_placed(1)
+    state.note_placed(2)
+    place(state, 4)
+    place(state, 9)
+    place(state, 11)
+    place(state, 13)
+    assert state.next_step().kind is StepKind.DONE
+    assert state.placed_by_me == ROBOT1
+
+
+def test_never_places_a_tile_before_its_supports() -> None:
+    state = executor(ROBOT1)
+    place(state, 3)
+    place(state, 6)
+    place(state, 9)  # 4 waits for robot 2's 1 and 2: the ready square 9 goes first
+    step = state.next_step()
+    assert step.kind is StepKind.WAIT and step.tile_id == 4 and step.waiting_for == (1, 2)
+
+
+def test_a_later_ready_tile_goes_first_unless_strict() -> None:
+    tiles = [3, 4, 6, 9]  # 4 needs 6, which comes later in this order
+    relaxed = executor(tiles)
+    place(relaxed, 3)
+    for tile in (1, 2):
+        relaxed.note_placed(tile)
+    assert relaxed.next_step().tile_id == 6  # 4 blocked by 6: take 6 first
+    strict = executor(tiles, strict=True)
+    place(strict, 3)
+    for tile in (1, 2):
+        strict.note_placed(tile)
+    step = strict.next_step()
+    assert step.kind is StepKind.WAIT and step.waiting_for == (6,)
+
+
+def test_missing_support_blocks_again() -> None:
+    state = executor([13])
+    state.note_placed(11)
+    assert state.next_step().kind is StepKind.PLACE
+    state.note_missing(11)
+    assert state.next_step().waiting_for == (11,)
+
+
+def test_failures_are_retried_then_given_up() -> None:
+    state = executor([3, 1], attempts=2)
+    state.start(3)
+    assert state.finish(3, False) is Outcome.RETRY
+    assert state.next_step().tile_id == 3  # retried first
+    state.start(3)
+    assert state.finish(3, False) is Outcome.GAVE_UP
+    assert 3 not in state.task()
+    assert state.next_step().tile_id == 1
+
+
+def test_award_goes_to_the_front_when_another_robot_waits_for_it() -> None:
+    state = executor([6, 9])
+    for tile in (1, 2, 3):
+        state.note_placed(tile)
+    state.start(6)  # in flight
+    state.note_placed(7)
+    # octagon 5 was found missing; robot 2's long rectangle 12 and square 10 wait for it
+    assert state.award(5) == 0
+    assert state.task() == [6, 5, 9]
+
+
+def test_award_before_the_first_own_dependent_when_nobody_else_waits() -> None:
+    state = PlanExecutor("robot2", PAPER)
+    state.adopt_plan(0, [8, 12, 14])
+    for tile in (1, 2, 3, 7):
+        state.note_placed(tile)
+    state.note_placed(10)
+    # robot2 owns everything above 5 that is not placed (12, 14): insert before 12
+    assert state.award(5) == 1
+    assert state.task() == [8, 5, 12, 14]
+
+
+def test_award_of_a_top_tile_goes_last() -> None:
+    state = executor([9, 11])
+    assert state.award(14) == 2
+
+
+def test_new_plan_revision_replaces_the_task_but_not_the_tile_in_flight() -> None:
+    state = executor([3, 6, 4])
+    state.start(3)
+    assert not state.adopt_plan(0, [1])  # same revision: ignored
+    assert state.adopt_plan(1, [3, 1, 2])
+    assert state.task() == [3, 1, 2]
+    assert state.finish(3, True) is Outcome.PLACED
+    state.note_placed(1)  # placed by someone else meanwhile
+    assert state.task() == [2]
+
+
+def test_start_refuses_foreign_tiles() -> None:
+    state = executor([3])
+    with pytest.raises(ValueError):
+        state.start(5)

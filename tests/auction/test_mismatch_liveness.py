@@ -1,0 +1,51 @@
+"""q * q^s = -1 (paper section 2.3) and heartbeat liveness."""
+
+from __future__ import annotations
+
+from auction_node.liveness import Liveness
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector
+
+
+def test_only_tiles_claimed_placed_can_be_missing() -> None:
+    detector = MismatchDetector()
+    detector.placed(4)
+    assert detector.sensed({4: MISSING, 5: MISSING, 6: PRESENT}) == [4]
+    assert detector.q[4] == 0  # no longer placed: not detected twice
+    assert detector.sensed({4: MISSING}) == []
+
+
+def test_undetermined_and_present_tiles_are_not_missing() -> None:
+    detector = MismatchDetector()
+    detector.placed(4)
+    assert detector.sensed({4: UNDETERMINED}) == []
+    assert detector.sensed({4: PRESENT}) == []
+
+
+def test_replaced_tile_forgets_its_old_sensing() -> None:
+    detector = MismatchDetector()
+    detector.placed(4)
+    assert detector.sensed({4: MISSING}) == [4]
+    detector.placed(4)
+    assert detector.q_sensed[4] == UNDETERMINED
+    assert detector.sensed({4: PRESENT}) == []
+
+
+def test_confirmations_need_consecutive_missing_scans() -> None:
+    detector = MismatchDetector(confirmations=2)
+    detector.placed(4)
+    assert detector.sensed({4: MISSING}) == []
+    assert detector.sensed({4: UNDETERMINED}) == []  # streak broken
+    assert detector.sensed({4: MISSING}) == []
+    assert detector.sensed({4: MISSING}) == [4]
+
+
+def test_liveness() -> None:
+    live = Liveness(timeout=1.0)
+    live.heard("robot1", 0.0)
+    live.heard("robot2", 0.0)
+    live.heard("robot1", 0.8)
+    assert live.newly_lost(1.5) == ["robot2"]
+    assert live.newly_lost(1.6) == []  # reported once
+    assert live.alive() == ["robot1"]
+    assert live.heard("robot2", 2.0) is True
+    assert live.alive() == ["robot1", "robot2"]

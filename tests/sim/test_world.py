@@ -1,0 +1,78 @@
+"""The simulated physical structure, robot timing and fault injection (ROS-free)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from conftest import STRUCTURES
+
+from tiling_assembly.structure_file import load_structure
+from tiling_sim.faults import FaultInjector
+from tiling_sim.robot_motion import MotionModel, approach_point, drive_time_to_pose, placement_phases
+from tiling_sim.world import PhysicalWorld, PlaceCheck
+
+PAPER = load_structure(STRUCTURES / "paper_14.yaml")
+
+
+def test_placement_needs_the_supports_physically_there() -> None:
+    world = PhysicalWorld(PAPER)
+    check, reason = world.check_placement(4)
+    assert check is PlaceCheck.SUPPORT_MISSING and "support 1, 2, 3, 6" in reason
+    for tile in (1, 2, 3, 6):
+        world.place(tile)
+    assert world.check_placement(4)[0] is PlaceCheck.OK
+    world.place(4)
+    assert world.check_placement(4)[0] is PlaceCheck.ALREADY_PRESENT
+    assert world.check_placement(99)[0] is PlaceCheck.UNKNOWN_TILE
+    with pytest.raises(ValueError):
+        world.place(11)
+
+
+def test_only_free_tiles_can_be_removed() -> None:
+    world = PhysicalWorld(PAPER)
+    for tile in (1, 2, 3, 6, 4, 9):
+        world.place(tile)
+    assert world.removable() == [4, 9]
+    with pytest.raises(ValueError):
+        world.remove(6)
+    world.remove(4)
+    assert 4 not in world.present and world.removable() == [1, 2, 3, 9]
+    assert not world.complete()
+
+
+def test_placement_phases_add_up() -> None:
+    model = MotionModel(drive_speed=0.2, locate_time=1, pick_time=5, place_time=8, retreat_time=2)
+    phases = placement_phases(model, (0.0, 0.0), (1.0, 0.0), (0.0, 0.5))
+    assert [p.phase for p in phases] == [1, 2, 3, 4, 5, 6]
+    target = approach_point(model, (0.0, 0.5), (1.0, 0.0))
+    assert math.dist(target, (0.0, 0.5)) == pytest.approx(0.25)
+    expected = 1.0 / 0.2 + 1 + 5 + math.dist((1.0, 0.0), target) / 0.2 + 8 + 2
+    assert sum(p.duration for p in phases) == pytest.approx(expected)
+    assert phases[-1].end == target
+
+
+def test_drive_time_turns_then_drives() -> None:
+    model = MotionModel(drive_speed=0.5, turn_speed=1.0)
+    assert drive_time_to_pose(model, (0, 0, 0), (1, 0, 0)) == pytest.approx(2.0)
+    assert drive_time_to_pose(model, (0, 0, 0), (0, 0, math.pi / 2)) == pytest.approx(math.pi / 2)
+    assert drive_time_to_pose(model, (0, 0, 0), (0, 1, 0)) == pytest.approx(math.pi + 2.0)
+
+
+def test_faults_are_reproducible_from_the_seed() -> None:
+    a = FaultInjector.scheduled(7, 3, (10.0, 100.0), drop_probability=0.3)
+    b = FaultInjector.scheduled(7, 3, (10.0, 100.0), drop_probability=0.3)
+    assert a.removal_times == b.removal_times and len(a.removal_times) == 3
+    assert all(10.0 <= t <= 100.0 for t in a.removal_times)
+    assert [a.choose([4, 9, 12]) for _ in range(5)] == [b.choose([4, 9, 12]) for _ in range(5)]
+    assert [a.drops() for _ in range(20)] == [b.drops() for _ in range(20)]
+    assert FaultInjector.scheduled(8, 3, (10.0, 100.0)).removal_times != a.removal_times
+
+
+def test_removals_come_due_in_order() -> None:
+    faults = FaultInjector(seed=1, removal_times=[50.0, 20.0])
+    assert faults.due(10.0) == 0
+    assert faults.due(30.0) == 1
+    faults.removed()
+    assert faults.due(30.0) == 0 and faults.due(60.0) == 1
+    assert faults.choose([]) is None
