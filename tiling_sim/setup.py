@@ -19,6 +19,7 @@ setup(
     entry_points={
         "console_scripts": [
             "sim_world = tiling_sim.world_node:main",
+            "experiment = tiling_sim.experiment:main",
         ],
     },
 )

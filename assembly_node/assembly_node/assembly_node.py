@@ -66,6 +66,7 @@ class AssemblyNode(Node):
         self.weight_supported = float(self.get_parameter("weight_supported").value)
         self.weight_distance = float(self.get_parameter("weight_distance").value)
         self.max_attempts = int(self.get_parameter("max_attempts").value)
+        self.bid_in_auctions = bool(self.get_parameter("bid_in_auctions").value)
         self.retry_delay = float(self.get_parameter("retry_delay").value)
         self.strict_order = bool(self.get_parameter("strict_order").value)
         self.action_timeout = float(self.get_parameter("action_timeout").value)
@@ -111,6 +112,7 @@ class AssemblyNode(Node):
         declare("travel_speed", 0.15, "Time model: mean base speed between cache and structure, m/s.")
         declare("weight_supported", 30.0, "A in b = w - A*c + B*d: s per own tile the missing one supports.")
         declare("weight_distance", 10.0, "B in b = w - A*c + B*d: s per metre from own cache to the tile.")
+        declare("bid_in_auctions", True, "Take part in auctions; false: never bid (the robot keeps its own task).")
         declare("max_attempts", 3, "Place actions per tile before giving it up for auction.")
         declare("retry_delay", 5.0, "s (node clock) to wait before retrying a failed placement.")
         declare("strict_order", False, "Wait on the next planned tile instead of placing a later ready one.")
@@ -180,7 +182,9 @@ class AssemblyNode(Node):
             return
         if msg.reason == AuctionAnnouncement.REASON_MISSING:
             state.note_missing(msg.tile_id)
-        if self.robot_name not in msg.bidders or msg.tile_id not in state.structure.tiles:
+        if not self.bid_in_auctions or self.robot_name not in msg.bidders:
+            return
+        if msg.tile_id not in state.structure.tiles:
             return
         tile_type = state.structure.tiles[msg.tile_id].type_name
         bid = compute_bid(

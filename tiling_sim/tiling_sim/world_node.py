@@ -36,7 +36,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profi
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import String
+from std_msgs.msg import Empty, String
 from tiling_assembly_msgs.action import NavigateTo, PlaceTile
 
 from tiling_assembly.geometry import (
@@ -114,6 +114,7 @@ class SimWorld(Node):
 
         self.sim_now = 0.0
         self.wall_start = time.monotonic()
+        self.started = not bool(p("wait_for_start").value)
         self.sleepers: list[tuple[float, int, Callable[[], None]]] = []
         self.sleeper_ids = itertools.count()
         self.lock = threading.RLock()
@@ -147,6 +148,7 @@ class SimWorld(Node):
         self.scan_pool = ThreadPoolExecutor(max_workers=1)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(self.clock_step, self.tick, clock=steady, callback_group=group)
+        self.create_subscription(Empty, "/sim/start", self.on_start, EVENTS)
         self.event("started", robots=self.robots, structure=self.structure.name,
                    removal_times=[round(t, 1) for t in self.faults.removal_times])
         self.get_logger().info(
@@ -172,6 +174,7 @@ class SimWorld(Node):
         declare("place_time", 10.0, "s to place a tile.")
         declare("retreat_time", 2.0, "s to back off after placing.")
         declare("approach_distance", 0.25, "m from a tile's centre to where the base stops to place it.")
+        declare("wait_for_start", False, "Hold simulated time at 0 until a message on /sim/start.")
         declare("seed", 1, "Seed of every random choice of the world (faults, localization errors, noise).")
         declare("removals", 0, "Tiles to remove during the build.")
         declare("removal_window_start", 40.0, "s of simulated time from which removals may happen.")
@@ -202,9 +205,16 @@ class SimWorld(Node):
                                          seed=int(self.get_parameter("seed").value))
 
     # --- simulated time -----------------------------------------------------------------------
+    def on_start(self, _msg: Empty) -> None:
+        if not self.started:
+            self.started = True
+            self.wall_start = time.monotonic()
+            self.get_logger().info("start: simulated time runs")
+
     def tick(self) -> None:
         with self.lock:
-            self.sim_now = (time.monotonic() - self.wall_start) * self.real_time_factor
+            if self.started:
+                self.sim_now = (time.monotonic() - self.wall_start) * self.real_time_factor
             now = self.sim_now
             msg = ClockMsg()
             msg.clock.sec = int(now)
@@ -262,6 +272,7 @@ class SimWorld(Node):
             with self.lock:
                 check, reason = self.world.check_placement(goal.tile_id)
             if check is PlaceCheck.ALREADY_PRESENT:
+                self.event("already_present", tile=goal.tile_id, robot=robot)
                 result.error_code, result.message = PlaceTile.Result.ALREADY_PRESENT, reason
                 handle.succeed()
                 return result
@@ -269,6 +280,7 @@ class SimWorld(Node):
                 result.error_code, result.message = PlaceTile.Result.FAILED_PRECONDITION, reason
                 handle.abort()
                 return result
+            self.event("place_started", tile=goal.tile_id, robot=robot)
             tile_xy = (goal.pose.pose.position.x, goal.pose.pose.position.y)
             phases = placement_phases(self.motion, self.positions[robot], (goal.cache.x, goal.cache.y), tile_xy)
             for phase in phases:
@@ -293,6 +305,7 @@ class SimWorld(Node):
                         if check is PlaceCheck.OK:
                             self.world.place(goal.tile_id)
                     if check is PlaceCheck.ALREADY_PRESENT:
+                        self.event("already_present", tile=goal.tile_id, robot=robot)
                         result.error_code, result.message = PlaceTile.Result.ALREADY_PRESENT, reason
                         handle.succeed()
                         return result
@@ -309,7 +322,7 @@ class SimWorld(Node):
             with self.lock:
                 if self.world.complete() and not self.complete_reported:
                     self.complete_reported = True
-                    self.event("complete")
+                    self.event("complete", pending_removals=len(self.faults.removal_times))
             return result
         finally:
             result.duration = self.sim_now - start_sim

@@ -1,0 +1,302 @@
+"""`experiment`: the paper's experiment in simulation (paper section 3), the product's main job.
+
+    ros2 run tiling_sim experiment [--structure FILE] [--robots N] [--trials N] [--removals N]
+                                   [--seed N] [--real-time-factor X] [--report DIR]
+
+Every trial starts every node as its own OS process, exactly as on the robots (the simulated
+world, the planner, the auction node, one assembly node per robot in /robotK, the inspection and
+exploration nodes of the VI robot in /vi), lets them build the structure while the world removes
+tiles at random times, and stops them all. A first trial without faults gives the makespan to
+compare with. At the end it prints the initial allocation (Table 1), the allocation after
+detections of one trial (Table 2), the detection statistics beside the paper's, whether every
+trial finished the structure, and makespans; and writes a report folder with pictures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import shutil
+import signal
+import statistics
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import rclpy
+from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+from rclpy.executors import SingleThreadedExecutor
+
+from tiling_assembly.structure import Structure, StructureError
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly.time_model import TimeModel
+from tiling_sim.experiment_observer import ExperimentObserver
+from tiling_sim.process_group import ProcessGroup
+from tiling_sim.trial_record import DetectionStats, TrialRecord, detection_stats
+
+PAPER_STATS = {"removed": 22, "detected": 12, "undetermined": 10, "false_positives": 0, "false_negatives": 1}
+
+
+@dataclass
+class ExperimentConfig:
+    structure_file: Path
+    robots: int = 2
+    trials: int = 14
+    removals: int = 22
+    seed: int = 1
+    real_time_factor: float = 20.0
+    report_dir: Path = Path("reports/paper_14")
+    config_dir: Path = Path("config")
+    baseline: bool = True
+    drop_probability: float = 0.0
+    kill_robot: str = ""  # robot to kill mid-run (tests and demonstrations)
+    kill_after_placements: int = 3
+    silent_robot: str = ""  # robot that never bids (tests)
+    wall_limit: float = 0.0  # s per trial; 0: derived from the structure
+    quiet: bool = False
+
+    @property
+    def robot_names(self) -> list[str]:
+        return [f"robot{k + 1}" for k in range(self.robots)]
+
+
+@dataclass
+class TrialSetup:
+    trial: int
+    seed: int
+    removals: int
+    faults: bool
+
+
+@dataclass
+class ExperimentResult:
+    config: ExperimentConfig
+    structure: Structure
+    records: list[TrialRecord] = field(default_factory=list)
+
+    def fault_trials(self) -> list[TrialRecord]:
+        return [r for r in self.records if r.trial > 0]
+
+
+def executable(package: str, name: str) -> str:
+    try:
+        prefix = get_package_prefix(package)
+    except PackageNotFoundError:
+        raise RuntimeError(f"package {package} is not installed (build the workspace first)") from None
+    path = Path(prefix) / "lib" / package / name
+    if not path.exists():
+        raise RuntimeError(f"{path} does not exist (build the workspace first)")
+    return str(path)
+
+
+def removals_per_trial(total: int, trials: int, seed: int) -> list[int]:
+    """Spread `total` removals over `trials` as evenly as possible, extras on seeded trials."""
+    counts = [total // trials] * trials
+    extra = random.Random(seed).sample(range(trials), total % trials) if trials else []
+    for k in extra:
+        counts[k] += 1
+    return counts
+
+
+class Experiment:
+    def __init__(self, config: ExperimentConfig) -> None:
+        self.config = config
+        self.structure = load_structure(config.structure_file)
+        model = TimeModel()
+        self.estimated_makespan = model.workload(self.structure, self.structure.tile_ids) / config.robots
+        self.sim_limit = 6.0 * self.estimated_makespan + 300.0
+        self.wall_limit = config.wall_limit or self.sim_limit / config.real_time_factor + 60.0
+        self.executables = {
+            "sim_world": executable("tiling_sim", "sim_world"),
+            "planner_node": executable("planner_node", "planner_node"),
+            "auction_node": executable("auction_node", "auction_node"),
+            "assembly_node": executable("assembly_node", "assembly_node"),
+            "vi_node": executable("vi_node", "vi_node"),
+            "vi_explorer": executable("vi_node", "vi_explorer"),
+        }
+
+    def params(self, package: str) -> list[str]:
+        path = self.config.config_dir / f"{package}.yaml"
+        return ["--params-file", str(path)] if path.exists() else []
+
+    def node_commands(self, setup: TrialSetup) -> dict[str, list[str]]:
+        c, exe = self.config, self.executables
+        structure = f"structure_file:={c.structure_file}"
+        robots = f"robot_names:=[{', '.join(c.robot_names)}]"
+        sim_time = ["-p", "use_sim_time:=true"]
+        window = (0.15 * self.estimated_makespan, 0.75 * self.estimated_makespan)
+        commands = {
+            "sim_world": [exe["sim_world"], "--ros-args", *self.params("tiling_sim"), "-p", structure,
+                          "-p", robots, "-p", f"seed:={setup.seed}", "-p", f"removals:={setup.removals}",
+                          "-p", f"removal_window_start:={window[0]:.1f}", "-p", f"removal_window_end:={window[1]:.1f}",
+                          "-p", f"real_time_factor:={c.real_time_factor}", "-p", "wait_for_start:=true",
+                          "-p", f"drop_probability:={c.drop_probability if setup.faults else 0.0}"],
+            "planner_node": [exe["planner_node"], "--ros-args", *self.params("planner_node"), "-p", structure,
+                             "-p", robots, *sim_time],
+            "auction_node": [exe["auction_node"], "--ros-args", *self.params("auction_node"), *sim_time],
+            "vi_node": [exe["vi_node"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"), "-p", structure,
+                        *sim_time],
+            "vi_explorer": [exe["vi_explorer"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_explorer"),
+                            "-p", structure, *sim_time],
+        }
+        for robot in c.robot_names:
+            extra = ["-p", "bid_in_auctions:=false"] if robot == c.silent_robot else []
+            commands[robot] = [exe["assembly_node"], "--ros-args", "-r", f"__ns:=/{robot}",
+                               *self.params("assembly_node"), *sim_time, *extra]
+        return commands
+
+    def expected_nodes(self) -> list[str]:
+        return ["/sim_world", "/planner_node", "/auction_node", "/vi/vi_node", "/vi/vi_explorer",
+                *[f"/{r}/assembly_node" for r in self.config.robot_names]]
+
+    def run_trial(self, setup: TrialSetup, progress: str) -> TrialRecord:
+        record = TrialRecord(trial=setup.trial, seed=setup.seed, removals_planned=setup.removals,
+                             tile_types={i: t.type_name for i, t in self.structure.tiles.items()})
+        logs = self.config.report_dir / "logs" / f"trial_{setup.trial:02d}"
+        if logs.exists():
+            shutil.rmtree(logs)
+        observer = ExperimentObserver(record, self.config.robot_names)
+        executor = SingleThreadedExecutor()
+        executor.add_node(observer)
+        with ProcessGroup(log_dir=logs) as group:
+            for name, argv in self.node_commands(setup).items():
+                group.start(name, argv)
+            wall_start = time.monotonic()
+            started_wall = None
+            killed = False
+            while True:
+                executor.spin_once(timeout_sec=0.05)
+                wall = time.monotonic() - wall_start
+                dead = [n for n in group.dead() if n != self.config.kill_robot]
+                if dead:
+                    record.failure = f"{', '.join(dead)} exited (see {logs})"
+                    break
+                if started_wall is None:
+                    waiting = observer.ready_to_start(self.expected_nodes())
+                    if not waiting:
+                        observer.start()
+                        started_wall = time.monotonic()
+                        record.started_at = 0.0
+                    elif wall > 60.0:
+                        record.failure = f"the nodes did not come up within 60 s: waiting for {', '.join(waiting)}"
+                        break
+                    continue
+                now = observer.now()
+                placed = sum(1 for e in record.events if e.kind == "placed")
+                removed = sum(1 for e in record.events if e.kind == "removed")
+                self.show(f"{progress} t={now:6.0f} s simulated, {placed} placements, {removed} removals, "
+                          f"{len(record.announcements)} auctions")
+                if (self.config.kill_robot and not killed
+                        and sum(1 for e in record.events if e.kind == "placed") >= self.config.kill_after_placements):
+                    group.kill(self.config.kill_robot)
+                    killed = True
+                if observer.complete:
+                    break
+                if now > self.sim_limit or time.monotonic() - started_wall > self.wall_limit:
+                    record.timed_out = True
+                    break
+            executor.remove_node(observer)
+            observer.destroy_node()
+        return record
+
+    def show(self, line: str) -> None:
+        if not self.config.quiet and sys.stdout.isatty():
+            print(f"\r{line[:110]:<110}", end="", flush=True)
+
+    def run(self) -> ExperimentResult:
+        c = self.config
+        result = ExperimentResult(c, self.structure)
+        counts = removals_per_trial(c.removals, c.trials, c.seed)
+        setups = ([TrialSetup(0, c.seed, 0, False)] if c.baseline else []) + [
+            TrialSetup(k + 1, c.seed + k + 1, counts[k], True) for k in range(c.trials)
+        ]
+        for setup in setups:
+            label = "baseline, no faults" if not setup.faults else f"{setup.removals} removal(s)"
+            progress = f"[trial {setup.trial}/{c.trials}] {label}:"
+            wall = time.monotonic()
+            record = self.run_trial(setup, progress)
+            result.records.append(record)
+            if not c.quiet:
+                print(f"\r{progress} {trial_summary(record)} ({time.monotonic() - wall:.0f} s wall)".ljust(110),
+                      flush=True)
+        return result
+
+
+def trial_summary(record: TrialRecord) -> str:
+    if record.failure:
+        return f"FAILED: {record.failure}"
+    if record.timed_out:
+        return "did not finish in time"
+    stats = detection_stats(record)
+    return (f"complete in {record.makespan():.0f} s simulated; removed {stats.removed}, "
+            f"detected {stats.detected}, auctions {len(record.awards)}")
+
+
+def total_stats(records: list[TrialRecord]) -> DetectionStats:
+    total = DetectionStats()
+    for record in records:
+        total.add(detection_stats(record))
+    return total
+
+
+def parse_args(argv: list[str] | None) -> ExperimentConfig:
+    parser = argparse.ArgumentParser(prog="experiment", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--structure", default="config/structures/paper_14.yaml", help="structure file")
+    parser.add_argument("--robots", type=int, default=2, help="assembly robots (default 2)")
+    parser.add_argument("--trials", type=int, default=14, help="trials with faults (default 14)")
+    parser.add_argument("--removals", type=int, default=22, help="tiles removed over all trials (default 22)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the whole experiment (default 1)")
+    parser.add_argument("--real-time-factor", type=float, default=20.0, help="simulated / wall time")
+    parser.add_argument("--drop-probability", type=float, default=0.0, help="chance a tile slips when placed")
+    parser.add_argument("--report", default=None, help="report folder (default reports/<structure>)")
+    parser.add_argument("--config", default="config", help="folder of the nodes' parameter files")
+    parser.add_argument("--no-baseline", action="store_true", help="skip the trial without faults")
+    parser.add_argument("--kill-robot", default="", help="kill this robot's process after a few placements")
+    parser.add_argument("--silent-robot", default="", help="this robot never bids (robustness check)")
+    parser.add_argument("--quiet", action="store_true", help="no progress output")
+    args = parser.parse_args(argv)
+    structure = Path(args.structure)
+    if args.robots < 1 or args.trials < 0 or args.removals < 0 or args.real_time_factor <= 0:
+        parser.error("--robots must be >= 1, --trials and --removals >= 0, --real-time-factor > 0")
+    return ExperimentConfig(
+        structure_file=structure.resolve(), robots=args.robots, trials=args.trials, removals=args.removals,
+        seed=args.seed, real_time_factor=args.real_time_factor,
+        report_dir=Path(args.report or f"reports/{structure.stem}"), config_dir=Path(args.config).resolve(),
+        baseline=not args.no_baseline, drop_probability=args.drop_probability, kill_robot=args.kill_robot,
+        silent_robot=args.silent_robot, quiet=args.quiet,
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    from tiling_sim import report  # noqa: PLC0415 - Matplotlib only when reporting
+
+    config = parse_args(argv)
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    rclpy.init(args=None)
+    try:
+        experiment = Experiment(config)
+        config.report_dir.mkdir(parents=True, exist_ok=True)
+        print(report.header(config, experiment.structure), flush=True)
+        result = experiment.run()
+        print(report.summary_text(result), flush=True)
+        path = report.write(result)
+        print(f"Report: {path}")
+        return 0 if all(r.complete() for r in result.records) else 1
+    except StructureError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    except RuntimeError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("\ninterrupted: every node was stopped", file=sys.stderr)
+        return 130
+    finally:
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("RCUTILS_LOGGING_USE_STDOUT", "0")
+    sys.exit(main())

@@ -1,0 +1,140 @@
+"""The experiment runner's eyes: a node that records one trial into a TrialRecord.
+
+It listens to everything the team says (plans, placement reports, tile states, auctions, robot
+status) and to the simulated world's events, releases the simulated clock once every node of the
+trial is up, and tells the runner when the structure is complete.
+"""
+
+from __future__ import annotations
+
+import json
+
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Empty, String
+from tiling_assembly_msgs.msg import (
+    AssemblyPlan,
+    AuctionAcceptance,
+    AuctionAnnouncement,
+    AuctionAward,
+    RobotStatus,
+    TileState,
+    TileStateArray,
+)
+
+from tiling_sim.trial_record import (
+    MISPLACED,
+    MISSING,
+    OCCLUDED,
+    PRESENT,
+    Announcement,
+    AwardRecord,
+    PlanRecord,
+    Scan,
+    StatusSample,
+    TrialRecord,
+    WorldEvent,
+)
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+EVENTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+DECISIONS = QoSProfile(depth=200, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+STATE_NAMES = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING, TileState.OCCLUDED: OCCLUDED,
+               TileState.MISPLACED: MISPLACED}
+
+
+def seconds(stamp) -> float:  # type: ignore[no-untyped-def]
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+class ExperimentObserver(Node):
+    def __init__(self, record: TrialRecord, robots: list[str]) -> None:
+        super().__init__(f"experiment_observer_{record.trial}",
+                         parameter_overrides=[Parameter("use_sim_time", value=True)])
+        self.record = record
+        self.robots = robots
+        self.heard_from: set[str] = set()
+        self.world_started = False
+        self.start_sent = False
+        self.complete = False
+        self.start_pub = self.create_publisher(Empty, "/sim/start", EVENTS)
+        self.create_subscription(String, "/sim/events", self.on_event, EVENTS)
+        self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
+        self.create_subscription(TileStateArray, "/tile_states", self.on_states, COORDINATION)
+        self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
+        self.create_subscription(AuctionAward, "/auction/awards", self.on_award, COORDINATION)
+        self.create_subscription(AuctionAcceptance, "/auction/acceptances", self.on_acceptance, COORDINATION)
+        self.create_subscription(String, "/auction/decisions", self.on_decision, DECISIONS)
+        self.create_subscription(RobotStatus, "/robot_status", self.on_status, COORDINATION)
+
+    def now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    # --- start --------------------------------------------------------------------------------
+    def ready_to_start(self, expected_nodes: list[str]) -> list[str]:
+        """What the trial still waits for before simulated time may run (empty: ready)."""
+        names = {f"{ns.rstrip('/')}/{name}" for name, ns in self.get_node_names_and_namespaces()}
+        waiting = [n for n in expected_nodes if n not in names]
+        if not self.world_started:
+            waiting.append("the world's first event")
+        if not self.record.plans:
+            waiting.append("the plan")
+        waiting += [f"{r}'s heartbeat" for r in self.robots if r not in self.heard_from]
+        return waiting
+
+    def start(self) -> None:
+        if not self.start_sent:
+            self.start_pub.publish(Empty())
+            self.start_sent = True
+
+    # --- recording ----------------------------------------------------------------------------
+    def on_event(self, msg: String) -> None:
+        data = json.loads(msg.data)
+        kind = data["event"]
+        if kind == "started":
+            self.world_started = True
+            return
+        event = WorldEvent(t=float(data["t"]), kind=kind, tile=int(data.get("tile", 0)),
+                           robot=str(data.get("robot", "")), reason=str(data.get("reason", "")))
+        self.record.events.append(event)
+        if kind == "complete" and int(data.get("pending_removals", 0)) == 0:
+            self.record.completed_at = event.t
+            self.complete = True
+        elif kind == "removed":
+            self.complete = False
+            self.record.completed_at = None
+
+    def on_plan(self, msg: AssemblyPlan) -> None:
+        self.record.plans.append(PlanRecord(
+            t=self.now(), revision=msg.revision, method=msg.method,
+            tasks={t.robot_name: list(t.tile_ids) for t in msg.tasks},
+            makespan=msg.makespan, lower_bound=msg.lower_bound,
+        ))
+
+    def on_states(self, msg: TileStateArray) -> None:
+        states = {s.tile_id: STATE_NAMES.get(s.state, "unknown") for s in msg.states}
+        self.record.scans.append(Scan(t=seconds(msg.header.stamp), states=states))
+        self.record.final_states.update(states)
+
+    def on_announcement(self, msg: AuctionAnnouncement) -> None:
+        self.record.announcements.append(
+            Announcement(seconds(msg.header.stamp), msg.auction_id, msg.tile_id, msg.reason))
+
+    def on_award(self, msg: AuctionAward) -> None:
+        self.record.awards.append(
+            AwardRecord(seconds(msg.header.stamp), msg.auction_id, msg.tile_id, msg.winner, msg.decision))
+
+    def on_acceptance(self, msg: AuctionAcceptance) -> None:
+        if msg.award_latency > 0:
+            self.record.award_latencies.append(msg.award_latency)
+
+    def on_decision(self, msg: String) -> None:
+        self.record.decisions.append(msg.data)
+
+    def on_status(self, msg: RobotStatus) -> None:
+        self.heard_from.add(msg.robot_name)
+        if self.start_sent:
+            self.record.statuses.append(
+                StatusSample(seconds(msg.header.stamp), msg.robot_name, msg.state, msg.current_tile))

@@ -1,0 +1,238 @@
+"""The experiment's report: the paper's tables and figures from our trials (paper section 3.2).
+
+Text for the terminal (Table 1, Table 2, detection statistics beside the paper's, completion and
+makespans) and a report folder: `report.md` with pictures of the structure coloured by tile state
+at the end of a trial and of each robot's schedule over time (Gantt chart with waits, auctions and
+re-placements marked).
+"""
+
+from __future__ import annotations
+
+import statistics
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+
+from tiling_assembly.structure import Structure  # noqa: E402
+from tiling_sim.trial_record import (  # noqa: E402
+    MISSING,
+    OCCLUDED,
+    PRESENT,
+    TrialRecord,
+    allocation_rows,
+    detection_stats,
+    schedule,
+)
+
+if TYPE_CHECKING:
+    from tiling_sim.experiment import ExperimentConfig, ExperimentResult
+
+STATE_COLOURS = {PRESENT: "#3a9d3a", MISSING: "#d43a3a", OCCLUDED: "#e8c23a", "unknown": "#9a9a9a"}
+KIND_COLOURS = {"place": "#4a78c2", "replace": "#e0892b", "failed": "#c23a3a", "wait": "#d9d9d9"}
+PAPER = {"removed": 22, "detected": 12, "undetermined": 10, "missing_called_present": 0, "present_called_missing": 1}
+
+
+def _pretty(type_name: str) -> str:
+    return type_name.replace("_", " ").title()
+
+
+def _table(headers: list[str], rows: list[list[str]]) -> list[str]:
+    widths = [max(len(h), *(len(r[k]) for r in rows)) if rows else len(h) for k, h in enumerate(headers)]
+    line = "  ".join(h.ljust(w) for h, w in zip(headers, widths, strict=True))
+    out = [line, "  ".join("-" * w for w in widths)]
+    out += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    return out
+
+
+def header(config: ExperimentConfig, structure: Structure) -> str:
+    return (
+        f"Experiment: {structure.name} ({len(structure)} tiles, {len(structure.tile_types)} types), "
+        f"{config.robots} assembly robots + 1 VI robot, {config.trials} trials with {config.removals} "
+        f"tiles removed in all, seed {config.seed}, simulated time at {config.real_time_factor:g}x"
+    )
+
+
+def table1(structure: Structure, tasks: dict[str, list[int]]) -> list[str]:
+    robots = list(tasks)
+    rows = []
+    for k in range(max((len(t) for t in tasks.values()), default=0)):
+        row = []
+        for robot in robots:
+            tiles = tasks[robot]
+            row += [_pretty(structure.tiles[tiles[k]].type_name), str(tiles[k])] if k < len(tiles) else ["", ""]
+        rows.append(row)
+    headers = [h for r in robots for h in (r.replace("robot", "Robot "), "Tile ID")]
+    return _table(headers, rows)
+
+
+def table2(record: TrialRecord, robots: list[str]) -> list[str]:
+    rows = allocation_rows(record, robots)
+    headers = ["t (s)", *[r.replace("robot", "Robot ") for r in robots]]
+    return _table(headers, [[row["t"], *[row[r] for r in robots]] for row in rows])
+
+
+def detection_table(result: ExperimentResult) -> list[str]:
+    from tiling_sim.experiment import total_stats  # noqa: PLC0415
+
+    stats = total_stats(result.fault_trials())
+    rate = stats.present_judged_missing / stats.present_judgements if stats.present_judgements else 0.0
+    rows = [
+        ["removed tiles", str(stats.removed), str(PAPER["removed"])],
+        ["detected as missing", str(stats.detected), str(PAPER["detected"])],
+        ["undetermined (never detected)", str(stats.undetermined), str(PAPER["undetermined"])],
+        ["false positives: missing tile reported present", str(stats.missing_called_present),
+         str(PAPER["missing_called_present"])],
+        ["false negatives: present tile reported missing", str(stats.present_called_missing),
+         str(PAPER["present_called_missing"])],
+        ["present tiles judged missing, per scan", f"{rate:.2%}", "-"],
+    ]
+    if stats.detection_delays:
+        rows.append(["median detection delay (simulated s)", f"{statistics.median(stats.detection_delays):.1f}", "-"])
+    for type_name, (removed, detected) in sorted(stats.by_type.items()):
+        rows.append([f"  {_pretty(type_name)}: detected / removed", f"{detected} / {removed}", "-"])
+    return _table(["", "this run", "paper"], rows)
+
+
+def makespan_lines(result: ExperimentResult) -> list[str]:
+    lines = []
+    baseline = [r.makespan() for r in result.records if r.trial == 0 and r.complete()]
+    faulty = [r.makespan() for r in result.fault_trials() if r.complete()]
+    plans = [p for r in result.records for p in r.plans if p.revision == 0]
+    if plans:
+        lines.append(f"Planned makespan {plans[0].makespan:.0f} s (lower bound {plans[0].lower_bound:.0f} s)")
+    if baseline:
+        lines.append(f"Makespan without faults: {baseline[0]:.0f} s simulated")
+    if faulty:
+        lines.append(
+            f"Makespan with faults: median {statistics.median(faulty):.0f} s, "
+            f"range {min(faulty):.0f}-{max(faulty):.0f} s over {len(faulty)} trials"
+        )
+    latencies = [x for r in result.records for x in r.award_latencies]
+    if latencies:
+        lines.append(
+            f"Missing tile detected -> award received by the winner (wall clock, over DDS): median "
+            f"{statistics.median(latencies) * 1000:.1f} ms, max {max(latencies) * 1000:.1f} ms over {len(latencies)} awards"
+        )
+    return lines
+
+
+def chosen_trial(result: ExperimentResult) -> TrialRecord | None:
+    """The trial shown in Table 2 and the pictures: the first with a detection, else the first."""
+    detected = [r for r in result.fault_trials() if r.announcements]
+    return detected[0] if detected else (result.records[0] if result.records else None)
+
+
+def summary_text(result: ExperimentResult) -> str:
+    robots = result.config.robot_names
+    lines = [""]
+    first_plan = next((p for r in result.records for p in r.plans if p.revision == 0), None)
+    if first_plan is not None:
+        lines += [f"Table 1. Initial allocation ({first_plan.method} planner)", *table1(result.structure, first_plan.tasks), ""]
+    trial = chosen_trial(result)
+    if trial is not None:
+        lines += [f"Table 2. Allocation after detection of missing tiles (trial {trial.trial})", *table2(trial, robots), ""]
+    lines += ["Detection statistics over the trials with faults", *detection_table(result), ""]
+    finished = [r for r in result.fault_trials() if r.complete()]
+    verdict = "yes" if len(finished) == len(result.fault_trials()) else "NO"
+    lines.append(f"Every trial finished the structure correctly: {verdict} ({len(finished)}/{len(result.fault_trials())})")
+    for record in result.records:
+        if not record.complete():
+            lines.append(f"  trial {record.trial}: {record.failure or 'did not finish in time'}")
+    lines += makespan_lines(result)
+    return "\n".join(lines)
+
+
+def draw_structure(structure: Structure, record: TrialRecord, path: Path) -> None:
+    """The structure coloured by the last state the inspection gave each tile."""
+    fig = plt.figure(figsize=(7, 5))
+    ax = fig.add_subplot(projection="3d")
+    for tile_id, tile in structure.tiles.items():
+        state = record.final_states.get(tile_id, "unknown")
+        faces = [tile.face_corners(k) for k in range(len(tile.shape.faces))]
+        ax.add_collection3d(Poly3DCollection(faces, facecolor=STATE_COLOURS.get(state, "#9a9a9a"),
+                                             edgecolor="#222222", linewidths=0.5, alpha=0.9))
+        centre = tile.centroid
+        ax.text(centre[0], centre[1], tile.aabb[1][2] + 0.005, str(tile_id), fontsize=7, ha="center")
+    lo, hi = structure.bounds
+    span = max(hi - lo) * 0.6
+    mid = (lo + hi) / 2
+    ax.set_xlim(mid[0] - span, mid[0] + span)
+    ax.set_ylim(mid[1] - span, mid[1] + span)
+    ax.set_zlim(0, 2 * span)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{structure.name}, trial {record.trial}: tile states at the end")
+    ax.legend(handles=[Patch(color=c, label=s) for s, c in STATE_COLOURS.items()], loc="upper left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def draw_gantt(record: TrialRecord, robots: list[str], path: Path) -> None:
+    """Each robot's schedule: placements, re-placements, failed attempts, waits; removals and awards."""
+    fig, ax = plt.subplots(figsize=(10, 1.2 + 0.8 * len(robots)))
+    rows = {robot: k for k, robot in enumerate(robots)}
+    for interval in schedule(record):
+        if interval.robot not in rows:
+            continue
+        y = rows[interval.robot]
+        height = 0.35 if interval.kind == "wait" else 0.7
+        ax.broken_barh([(interval.start, interval.end - interval.start)], (y - height / 2, height),
+                       facecolors=KIND_COLOURS[interval.kind], edgecolor="#333333", linewidth=0.4)
+        if interval.tile and interval.end - interval.start > 4:
+            ax.text((interval.start + interval.end) / 2, y, str(interval.tile), ha="center", va="center", fontsize=7)
+    for event in record.removals():
+        ax.axvline(event.t, color="#c23a3a", linestyle="--", linewidth=0.8)
+        ax.text(event.t, len(robots) - 0.45, f"tile {event.tile} removed", rotation=90, fontsize=6,
+                color="#c23a3a", va="top")
+    for award in record.awards:
+        if award.winner in rows:
+            ax.plot(award.t, rows[award.winner] + 0.45, marker="v", color="#7b3fb3", markersize=7)
+    ax.set_yticks(range(len(robots)), [r.replace("robot", "Robot ") for r in robots])
+    ax.set_xlabel("simulated time (s)")
+    ax.set_ylim(-0.7, len(robots) - 0.2)
+    ax.set_title(f"Trial {record.trial}: schedule per robot (triangles: auctions won)")
+    ax.legend(handles=[Patch(color=c, label=k) for k, c in KIND_COLOURS.items()], loc="lower right", fontsize=7,
+              ncol=4)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def write(result: ExperimentResult) -> Path:
+    folder = result.config.report_dir
+    folder.mkdir(parents=True, exist_ok=True)
+    robots = result.config.robot_names
+    trial = chosen_trial(result)
+    lines = [f"# {header(result.config, result.structure)}", "", "```", summary_text(result).strip(), "```", ""]
+    if trial is not None:
+        draw_structure(result.structure, trial, folder / f"structure_trial_{trial.trial:02d}.png")
+        draw_gantt(trial, robots, folder / f"gantt_trial_{trial.trial:02d}.png")
+        lines += [f"## Trial {trial.trial}", "",
+                  f"![structure coloured by tile state](structure_trial_{trial.trial:02d}.png)", "",
+                  f"![schedule per robot](gantt_trial_{trial.trial:02d}.png)", ""]
+    baseline = next((r for r in result.records if r.trial == 0 and r.complete()), None)
+    if baseline is not None and baseline is not trial:
+        draw_gantt(baseline, robots, folder / "gantt_trial_00.png")
+        lines += ["## Trial 0 (no faults)", "", "![schedule without faults](gantt_trial_00.png)", ""]
+    lines += ["## Trials", "", "| trial | seed | removed | detected | auctions | makespan (s) | result |",
+              "|---|---|---|---|---|---|---|"]
+    for record in result.records:
+        stats = detection_stats(record)
+        makespan = f"{record.makespan():.0f}" if record.makespan() is not None else "-"
+        outcome = "complete" if record.complete() else (record.failure or "timed out")
+        lines.append(f"| {record.trial} | {record.seed} | {stats.removed} | {stats.detected} | {len(record.awards)} "
+                     f"| {makespan} | {outcome} |")
+    lines += ["", "## Decisions of the auction node, trial by trial", ""]
+    for record in result.records:
+        if record.decisions:
+            lines += [f"Trial {record.trial}:", "", *[f"- {d}" for d in record.decisions], ""]
+    path = folder / "report.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path

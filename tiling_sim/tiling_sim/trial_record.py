@@ -1,0 +1,246 @@
+"""What happened in one simulated trial, and the figures the paper reports (section 3.2).
+
+The record holds the world's truth (tiles placed and removed, with simulated times), every scan's
+judgement of every tile, the auctions and the robots' progress; the functions below turn it into
+the paper's detection statistics (removed tiles detected / undetermined; missing tiles called
+present, the paper's "false positives"; present tiles called missing, its "false negatives"), the
+allocation after detections (Table 2), a schedule per robot for the Gantt chart, and makespans.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+PRESENT, MISSING, OCCLUDED, MISPLACED = "present", "missing", "occluded", "misplaced"
+REASON_MISSING = 0
+
+
+@dataclass(frozen=True)
+class WorldEvent:
+    t: float  # s of simulated time
+    kind: str  # started, place_started, placed, refused, dropped, removed, complete
+    tile: int = 0
+    robot: str = ""
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class Scan:
+    t: float
+    states: dict[int, str]  # tile id -> present / missing / occluded / misplaced
+
+
+@dataclass(frozen=True)
+class Announcement:
+    t: float
+    auction_id: int
+    tile: int
+    reason: int
+
+
+@dataclass(frozen=True)
+class AwardRecord:
+    t: float
+    auction_id: int
+    tile: int
+    winner: str
+    decision: str
+
+
+@dataclass(frozen=True)
+class StatusSample:
+    t: float
+    robot: str
+    state: int  # RobotStatus constant
+    current_tile: int
+
+
+@dataclass(frozen=True)
+class PlanRecord:
+    t: float
+    revision: int
+    method: str
+    tasks: dict[str, list[int]]
+    makespan: float
+    lower_bound: float
+
+
+@dataclass
+class TrialRecord:
+    trial: int
+    seed: int
+    removals_planned: int
+    tile_types: dict[int, str] = field(default_factory=dict)
+    plans: list[PlanRecord] = field(default_factory=list)
+    events: list[WorldEvent] = field(default_factory=list)
+    scans: list[Scan] = field(default_factory=list)
+    announcements: list[Announcement] = field(default_factory=list)
+    awards: list[AwardRecord] = field(default_factory=list)
+    award_latencies: list[float] = field(default_factory=list)  # s of wall time
+    statuses: list[StatusSample] = field(default_factory=list)
+    decisions: list[str] = field(default_factory=list)
+    started_at: float = 0.0  # s of simulated time the build started
+    completed_at: float | None = None
+    timed_out: bool = False
+    failure: str = ""
+    final_states: dict[int, str] = field(default_factory=dict)
+
+    # --- truth -------------------------------------------------------------------------------
+    def presence_intervals(self) -> dict[int, list[tuple[float, float]]]:
+        """Per tile, the simulated-time intervals it was physically in place."""
+        intervals: dict[int, list[tuple[float, float]]] = {}
+        since: dict[int, float] = {}
+        for event in sorted(self.events, key=lambda e: e.t):
+            if event.kind == "placed":
+                since[event.tile] = event.t
+            elif event.kind == "removed" and event.tile in since:
+                intervals.setdefault(event.tile, []).append((since.pop(event.tile), event.t))
+        for tile, start in since.items():
+            intervals.setdefault(tile, []).append((start, float("inf")))
+        return intervals
+
+    def present_at(self, tile: int, t: float, intervals: dict[int, list[tuple[float, float]]]) -> bool:
+        return any(a <= t < b for a, b in intervals.get(tile, []))
+
+    def removals(self) -> list[WorldEvent]:
+        return [e for e in self.events if e.kind == "removed"]
+
+    def complete(self) -> bool:
+        return self.completed_at is not None and not self.timed_out and not self.failure
+
+    def makespan(self) -> float | None:
+        return None if self.completed_at is None else self.completed_at - self.started_at
+
+
+@dataclass(frozen=True)
+class RemovalOutcome:
+    tile: int
+    removed_at: float
+    detected_at: float | None  # when it was auctioned as missing
+    called_present: int  # scans that called it present while it was away
+    back_at: float | None  # when it was physically in place again
+
+
+@dataclass
+class DetectionStats:
+    removed: int = 0
+    detected: int = 0
+    undetermined: int = 0
+    missing_called_present: int = 0  # removals some scan called present (the paper's false positives)
+    present_called_missing: int = 0  # auctions for tiles that were there (the paper's false negatives)
+    present_judgements: int = 0  # (present tile, scan) pairs judged
+    present_judged_missing: int = 0  # of those, called missing
+    detection_delays: list[float] = field(default_factory=list)  # s of simulated time
+    by_type: dict[str, list[int]] = field(default_factory=dict)  # type -> [removed, detected]
+
+    def add(self, other: DetectionStats) -> None:
+        for name in ("removed", "detected", "undetermined", "missing_called_present", "present_called_missing",
+                     "present_judgements", "present_judged_missing"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        self.detection_delays += other.detection_delays
+        for type_name, (removed, detected) in other.by_type.items():
+            mine = self.by_type.setdefault(type_name, [0, 0])
+            mine[0] += removed
+            mine[1] += detected
+
+
+def removal_outcomes(record: TrialRecord) -> list[RemovalOutcome]:
+    intervals = record.presence_intervals()
+    outcomes = []
+    for removal in record.removals():
+        back = next((a for a, _ in intervals.get(removal.tile, []) if a > removal.t), None)
+        end = back if back is not None else float("inf")
+        detected = next(
+            (a.t for a in record.announcements
+             if a.tile == removal.tile and a.reason == REASON_MISSING and removal.t <= a.t <= end),
+            None,
+        )
+        called_present = sum(
+            1 for s in record.scans if removal.t < s.t < end and s.states.get(removal.tile) == PRESENT
+        )
+        outcomes.append(RemovalOutcome(removal.tile, removal.t, detected, called_present, back))
+    return outcomes
+
+
+def detection_stats(record: TrialRecord) -> DetectionStats:
+    stats = DetectionStats()
+    intervals = record.presence_intervals()
+    for outcome in removal_outcomes(record):
+        stats.removed += 1
+        per_type = stats.by_type.setdefault(record.tile_types.get(outcome.tile, "?"), [0, 0])
+        per_type[0] += 1
+        if outcome.detected_at is not None:
+            stats.detected += 1
+            per_type[1] += 1
+            stats.detection_delays.append(outcome.detected_at - outcome.removed_at)
+        else:
+            stats.undetermined += 1
+        if outcome.called_present:
+            stats.missing_called_present += 1
+    for announcement in record.announcements:
+        if announcement.reason == REASON_MISSING and record.present_at(announcement.tile, announcement.t, intervals):
+            stats.present_called_missing += 1
+    for scan in record.scans:
+        for tile, state in scan.states.items():
+            if record.present_at(tile, scan.t, intervals):
+                stats.present_judgements += 1
+                stats.present_judged_missing += state == MISSING
+    return stats
+
+
+def allocation_rows(record: TrialRecord, robots: Iterable[str]) -> list[dict[str, str]]:
+    """Table 2: one row per placement or removal, in time order, in the column of its robot.
+
+    A removed tile appears in the column of the robot that had placed it, as in the paper.
+    """
+    robots = list(robots)
+    last_placer: dict[int, str] = {}
+    rows = []
+    for event in sorted(record.events, key=lambda e: e.t):
+        if event.kind == "placed":
+            last_placer[event.tile] = event.robot
+            label = f"{_pretty(record.tile_types.get(event.tile, '?'))} {event.tile}"
+            rows.append({r: (label if r == event.robot else "") for r in robots} | {"t": f"{event.t:.0f}"})
+        elif event.kind == "removed":
+            owner = last_placer.get(event.tile, robots[0])
+            rows.append({r: (f"Removed tile {event.tile}" if r == owner else "") for r in robots}
+                        | {"t": f"{event.t:.0f}"})
+    return rows
+
+
+@dataclass(frozen=True)
+class Interval:
+    robot: str
+    start: float
+    end: float
+    kind: str  # place, replace, wait, failed
+    tile: int = 0
+
+
+def schedule(record: TrialRecord) -> list[Interval]:
+    """Per robot: placements (re-placements marked), failed attempts and waits, for the Gantt chart."""
+    removed_before: set[int] = set()
+    started: dict[str, tuple[float, int]] = {}
+    intervals: list[Interval] = []
+    for event in sorted(record.events, key=lambda e: e.t):
+        if event.kind == "removed":
+            removed_before.add(event.tile)
+        elif event.kind == "place_started":
+            started[event.robot] = (event.t, event.tile)
+        elif event.kind in ("placed", "refused", "dropped", "already_present") and event.robot in started:
+            t0, tile = started.pop(event.robot)
+            kind = "failed" if event.kind in ("refused", "dropped") else (
+                "replace" if tile in removed_before else "place")
+            intervals.append(Interval(event.robot, t0, event.t, kind, tile))
+    waiting: dict[str, float] = {}
+    for sample in sorted(record.statuses, key=lambda s: s.t):
+        if sample.state == 1 and sample.robot not in waiting:  # RobotStatus.WAITING
+            waiting[sample.robot] = sample.t
+        elif sample.state != 1 and sample.robot in waiting:
+            intervals.append(Interval(sample.robot, waiting.pop(sample.robot), sample.t, "wait"))
+    return intervals
+
+
+def _pretty(type_name: str) -> str:
+    return type_name.replace("_", " ").title()
