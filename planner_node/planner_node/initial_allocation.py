@@ -39,6 +39,7 @@ class InitialAllocation:
     owner: IntArray  # (n,) robot index of every tile
     seeds: tuple[int, ...]  # seed tile index of every robot (NO_ROBOT for a robot without tiles)
     distance: FloatArray  # (n,) m, graph distance from the tile to its region's seed
+    seed_distance: FloatArray  # (robots, n) m, graph distance from each robot's seed(s) to each tile
 
 
 def _farthest_points(points: FloatArray, chosen: list[int], count: int) -> list[int]:
@@ -99,21 +100,29 @@ def exterior_seeds(graph: AssemblyGraph, tiles: IntArray, count: int) -> list[in
     except (QhullError, ValueError):
         hull, perimeter = None, 0.0
 
-    if hull is None or width < 0.5 * perimeter / count:
-        low, span = float(along.min()), float(np.ptp(along))
-        targets = centre + np.outer(low + (np.arange(count) + 0.5) * span / count, major)
-        free = np.ones(len(ground), dtype=bool)
-        seeds = []
-        for target in targets:
-            d = np.linalg.norm(xy - target, axis=1)
-            d[~free] = np.inf
-            k = int(np.argmin(d))
-            free[k] = False
-            seeds.append(int(ground[k]))
-        return seeds
-
     spacing, _ = cKDTree(xy).query(xy, k=2)
     tolerance = max(0.5 * float(np.median(spacing[:, 1])), 1e-6)
+    if hull is None or width < 0.5 * perimeter / count:
+        # a line-like footprint: seeds at equal steps along its long axis, on its exterior
+        if hull is not None:
+            dist, _, _ = _arc_positions(xy, hull)
+            outside = np.flatnonzero(dist <= tolerance)
+        else:
+            outside = np.arange(len(ground))
+        if len(outside) < count:
+            outside = np.arange(len(ground))
+        low, span = float(along.min()), float(np.ptp(along))
+        free = np.ones(len(outside), dtype=bool)
+        seeds = []
+        for j in range(count):
+            gap = np.abs(along[outside] - (low + (j + 0.5) * span / count))
+            gap -= 1e-6 * np.abs(along[outside])  # a tie goes to the tile nearer the end
+            gap[~free] = np.inf
+            k = int(np.argmin(gap))
+            free[k] = False
+            seeds.append(int(ground[outside[k]]))
+        return seeds
+
     dist, arc, perimeter = _arc_positions(xy, hull)
     outside = np.flatnonzero(dist <= tolerance)
     if len(outside) < count:
@@ -134,16 +143,46 @@ def exterior_seeds(graph: AssemblyGraph, tiles: IntArray, count: int) -> list[in
     return seeds
 
 
-def _seeds_per_component(work: FloatArray, sizes: IntArray, n_robots: int) -> IntArray:
+def _robots_per_piece(work: FloatArray, sizes: IntArray, n_robots: int) -> IntArray:
     """Robots per piece: at least one each, the rest to the piece with the most work per robot."""
-    seeds = np.ones(len(work), dtype=np.int64)
+    count = np.ones(len(work), dtype=np.int64)
     for _ in range(n_robots - len(work)):
-        per_robot = np.where(seeds < sizes, work / seeds, -np.inf)
+        per_robot = np.where(count < sizes, work / count, -np.inf)
         k = int(np.argmax(per_robot))
         if per_robot[k] == -np.inf:
             break
-        seeds[k] += 1
-    return seeds
+        count[k] += 1
+    return count
+
+
+def split_among_pieces(graph: AssemblyGraph, n_robots: int) -> list[tuple[IntArray, list[int]]]:
+    """The structure's separate pieces (left to right) with the robots each one gets.
+
+    With no more pieces than robots, every piece gets robots in proportion to its work and robots
+    are numbered piece by piece. With more pieces than robots, whole pieces are dealt, heaviest
+    first, to the least loaded robot (each piece then has one robot).
+    """
+    labels = graph.component
+    work = np.bincount(labels, weights=graph.cost, minlength=graph.n_components)
+    sizes = np.bincount(labels, minlength=graph.n_components)
+    left = np.full(graph.n_components, np.inf)
+    np.minimum.at(left, labels, graph.centroids[:, 0])
+    pieces = np.argsort(left, kind="stable")
+    members = {int(c): np.flatnonzero(labels == c) for c in pieces}
+    if graph.n_components <= n_robots:
+        counts = _robots_per_piece(work[pieces], sizes[pieces], n_robots)
+        split, first = [], 0
+        for c, k in zip(pieces, counts, strict=True):
+            split.append((members[int(c)], list(range(first, first + int(k)))))
+            first += int(k)
+        return split
+    load = np.zeros(n_robots)
+    dealt = []
+    for c in sorted(pieces.tolist(), key=lambda c: (-work[c], left[c])):
+        r = int(np.argmin(load))
+        load[r] += work[c]
+        dealt.append((members[c], [r]))
+    return dealt
 
 
 def initial_allocation(graph: AssemblyGraph, n_robots: int) -> InitialAllocation:
@@ -151,45 +190,31 @@ def initial_allocation(graph: AssemblyGraph, n_robots: int) -> InitialAllocation
     if n_robots < 1:
         raise ValueError("at least one robot is needed")
     n = len(graph)
-    labels = graph.component
-    work = np.bincount(labels, weights=graph.cost, minlength=graph.n_components)
-    sizes = np.bincount(labels, minlength=graph.n_components)
-    # pieces from left to right, so that robot numbers read left to right
-    left = np.full(graph.n_components, np.inf)
-    np.minimum.at(left, labels, graph.centroids[:, 0] if n else np.zeros(0))
-    pieces = np.argsort(left, kind="stable")
-    members = {int(c): np.flatnonzero(labels == c) for c in pieces}
-
+    if n == 0:
+        empty = np.zeros(0)
+        return InitialAllocation(np.zeros(0, dtype=np.int64), tuple([NO_ROBOT] * n_robots), empty,
+                                 np.zeros((n_robots, 0)))
     seeds: list[int] = []
     seed_robot: list[int] = []
-    owner = np.full(n, NO_ROBOT, dtype=np.int64)
-    if graph.n_components <= n_robots:
-        counts = _seeds_per_component(work[pieces], sizes[pieces], n_robots)
-        for c, k in zip(pieces, counts, strict=True):
-            for s in exterior_seeds(graph, members[int(c)], int(k)):
-                seed_robot.append(len(seeds))
-                seeds.append(s)
-    else:
-        # more pieces than robots: deal whole pieces, heaviest first, to the least loaded robot
-        load = np.zeros(n_robots)
-        for c in sorted(pieces, key=lambda c: (-work[c], c)):
-            r = int(np.argmin(load))
-            load[r] += work[c]
-            owner[members[int(c)]] = r
-            seeds.extend(exterior_seeds(graph, members[int(c)], 1))
-            seed_robot.append(r)
-
-    if n == 0:
-        return InitialAllocation(owner, tuple([NO_ROBOT] * n_robots), np.zeros(0))
-    distance, _, sources = dijkstra(
+    for members, robots in split_among_pieces(graph, n_robots):
+        chosen = exterior_seeds(graph, members, len(robots))
+        seeds += chosen
+        seed_robot += robots[: len(chosen)]
+    from_seed = np.atleast_2d(dijkstra(graph.adjacency, directed=True, indices=seeds))
+    seed_distance = np.full((n_robots, n), np.inf)
+    for row, r in zip(from_seed, seed_robot, strict=True):
+        np.minimum(seed_distance[r], row, out=seed_distance[r])
+    # owners from the shortest-path forest, so that every region is a tree (connected) even
+    # where two seeds are exactly as far
+    _, _, sources = dijkstra(
         graph.adjacency, directed=True, indices=seeds, return_predecessors=True, min_only=True
     )
-    if graph.n_components <= n_robots:
-        robot_of_seed = np.full(n, NO_ROBOT, dtype=np.int64)
-        robot_of_seed[seeds] = seed_robot
-        owner = robot_of_seed[sources]
+    robot_of_seed = np.full(n, NO_ROBOT, dtype=np.int64)
+    robot_of_seed[seeds] = seed_robot
+    owner = robot_of_seed[sources]
     robot_seed = [NO_ROBOT] * n_robots
     for s, r in zip(seeds, seed_robot, strict=True):
         if robot_seed[r] == NO_ROBOT:
             robot_seed[r] = s
-    return InitialAllocation(owner, tuple(robot_seed), distance)
+    distance = seed_distance[owner, np.arange(n)]
+    return InitialAllocation(owner, tuple(robot_seed), distance, seed_distance)

@@ -34,7 +34,6 @@ from planner_node.assembly_graph import AssemblyGraph
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 
-LOCAL_SEARCH_LIMIT = 64  # tiles a local connectivity check visits before checking the whole region
 
 
 def imbalance(workloads: FloatArray | list[float]) -> float:
@@ -68,8 +67,15 @@ class TradingResult:
 class RegionBorders:
     """Regions of the contact graph with their workloads and border sets, updated per move."""
 
-    def __init__(self, graph: AssemblyGraph, owner: IntArray, n_robots: int) -> None:
+    def __init__(
+        self, graph: AssemblyGraph, owner: IntArray, n_robots: int, affinity: FloatArray | None = None
+    ) -> None:
         self.graph = graph
+        # affinity[r][t]: how far tile t is from robot r's region (seed distance); trades move the
+        # tiles nearest to the taker relative to the giver first, so regions stay compact
+        self.affinity = (
+            [np.nan_to_num(row, posinf=1e12).tolist() for row in affinity] if affinity is not None else None
+        )
         self.neighbors = graph.neighbor_lists
         self.cost = graph.cost.tolist()
         self.owner: list[int] = [int(o) for o in owner]
@@ -102,21 +108,52 @@ class RegionBorders:
         inside = [u for u in self.neighbors[tile] if owner[u] == region]
         if len(inside) <= 1:
             return True
-        for limit in (LOCAL_SEARCH_LIMIT, None):
-            targets = set(inside[1:])
-            seen = {tile, inside[0]}
-            queue = deque([inside[0]])
-            while queue and targets and (limit is None or len(seen) <= limit):
-                for v in self.neighbors[queue.popleft()]:
-                    if v not in seen and owner[v] == region:
-                        seen.add(v)
-                        targets.discard(v)
+        # One breadth-first search from each neighbour, advanced in turns: they stop as soon as
+        # they have all met (still connected), or as soon as one of them runs out of tiles before
+        # meeting the others (that part would be cut off). Either way the work is about the size
+        # of the smaller side, not of the whole region.
+        neighbors = self.neighbors
+        search_of = {tile: -1}
+        parent = list(range(len(inside)))
+
+        def root(k: int) -> int:
+            while parent[k] != k:
+                parent[k] = parent[parent[k]]
+                k = parent[k]
+            return k
+
+        queues = []
+        for k, u in enumerate(inside):
+            search_of[u] = k
+            queues.append(deque([u]))
+        groups = len(inside)
+        while True:
+            for k, queue in enumerate(queues):
+                if root(k) != k and not queue:
+                    continue
+                if not queue:
+                    return False  # search k (with all it met) is closed off from the others
+                here = root(k)
+                for v in neighbors[queue.popleft()]:
+                    if owner[v] != region:
+                        continue
+                    other = search_of.get(v)
+                    if other is None:
+                        search_of[v] = here
                         queue.append(v)
-            if not targets:
-                return True
-            if not queue:  # the whole reachable part was searched: the region would split
-                return False
-        return False
+                    elif other >= 0:
+                        a, b = root(other), root(here)
+                        if a != b:
+                            parent[a] = b
+                            here = b
+                            groups -= 1
+                            if groups == 1:
+                                return True
+                # a merged search keeps its own queue; queues of one group are advanced in turn
+                if root(k) != k:
+                    r = root(k)
+                    queues[r].extend(queue)
+                    queue.clear()
 
     def move(self, tile: int, to: int) -> None:
         """Move `tile` to region `to`, updating workloads, sizes and borders."""
@@ -157,20 +194,42 @@ class RegionBorders:
         if not candidates:
             return None
         half = 0.5 * gap
-        # most contact with the taker first (regions stay compact), then the best balancing cost
-        candidates.sort(key=lambda t: (-counts[t][taker], abs(cost[t] - half), t))
+        if self.affinity is not None:
+            near, far = self.affinity[taker], self.affinity[giver]
+            candidates.sort(key=lambda t: (near[t] - far[t], abs(cost[t] - half), t))
+        else:
+            # most contact with the taker first, then the best balancing cost
+            candidates.sort(key=lambda t: (-counts[t][taker], abs(cost[t] - half), t))
         for t in candidates:
             if self.can_leave(t):
                 return t
         return None
 
 
+def centroid_affinity(graph: AssemblyGraph, owner: IntArray, n_robots: int) -> FloatArray:
+    """Floor distance from every region's centre (by work) to every tile, (robots, n) in m."""
+    xy = graph.centroids[:, :2]
+    weight = np.bincount(owner, weights=graph.cost, minlength=n_robots)[:n_robots]
+    centre = np.column_stack([
+        np.bincount(owner, weights=graph.cost * xy[:, k], minlength=n_robots)[:n_robots] for k in (0, 1)
+    ]) / np.maximum(weight, 1e-12)[:, None]
+    return np.linalg.norm(xy[None, :, :] - centre[:, None, :], axis=2)
+
+
 def trade_nodes(
-    graph: AssemblyGraph, owner: IntArray, n_robots: int, max_trades: int | None = None
+    graph: AssemblyGraph,
+    owner: IntArray,
+    n_robots: int,
+    affinity: FloatArray | None = None,
+    max_trades: int | None = None,
 ) -> TradingResult:
-    """Trade border tiles from heavier to lighter regions until no trade lowers the imbalance."""
+    """Trade border tiles from heavier to lighter regions until no trade lowers the imbalance.
+
+    `affinity` (robots, n): distance of each tile from each robot's region (its seed); among the
+    tiles that may move, the one nearest the taker relative to the giver goes first.
+    """
     before = workloads(graph, owner, n_robots)
-    regions = RegionBorders(graph, owner, n_robots)
+    regions = RegionBorders(graph, owner, n_robots, affinity)
     limit = max_trades if max_trades is not None else 20 * len(graph) + 100
     trades = 0
     while trades < limit:

@@ -26,8 +26,9 @@ import numpy as np
 
 from planner_node.assembly_graph import AssemblyGraph, build_graph
 from planner_node.initial_allocation import initial_allocation
+from planner_node.layer_partition import layer_partition
 from planner_node.makespan_bound import MakespanBound, makespan_lower_bound
-from planner_node.node_trading import imbalance, trade_nodes, workloads
+from planner_node.node_trading import centroid_affinity, imbalance, trade_nodes, workloads
 from planner_node.schedule_improvement import improve_plan
 from planner_node.schedule_sim import SimulationResult, TeamSchedule, simulate_orders, team_schedule
 from planner_node.sequencing import Policy, sequence_tiles
@@ -67,6 +68,7 @@ class PlanStats:
     trades: int = 0
     improvement_moves: int = 0
     helped: int = 0  # tiles a robot placed for a neighbour (default method)
+    partition: str = ""  # the starting partition: "dijkstra" (the paper's) or "layers"
     imbalance_initial: float = 1.0
     imbalance_traded: float = 1.0
     imbalance_final: float = 1.0
@@ -193,31 +195,48 @@ def plan_assembly(
     allocation = initial_allocation(graph, n_robots)
     seconds["allocation"] = time.perf_counter() - tic
     tic = time.perf_counter()
-    traded = trade_nodes(graph, allocation.owner, n_robots)
+    traded = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
     seconds["trading"] = time.perf_counter() - tic
+    initial_imbalance = imbalance(workloads(graph, allocation.owner, n_robots))
 
     tic = time.perf_counter()
     if method is Method.PAPER:
         owner = traded.owner
         orders = sequence_tiles(graph, owner, n_robots, Policy.MAX_SLACK, allocation.distance).orders
         result = simulate_orders(graph, orders)
-        policy, moves, helped = Policy.MAX_SLACK.value, 0, 0
+        policy, moves, helped, start = Policy.MAX_SLACK.value, 0, 0, "dijkstra"
+        trades, traded_imbalance = traded.trades, traded.imbalance_after
         seconds["sequencing"] = time.perf_counter() - tic
     else:
-        improved = improve_plan(graph, traded.owner, n_robots, allocation.distance, improve_time_limit)
+        sliced = layer_partition(graph, n_robots)
+        layered = trade_nodes(graph, sliced, n_robots, centroid_affinity(graph, sliced, n_robots))
+        seconds["layers"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        improved = improve_plan(
+            graph,
+            {"layers": layered.owner, "layers-untraded": sliced, "dijkstra": traded.owner},
+            n_robots,
+            allocation.distance,
+            improve_time_limit,
+        )
         owner, orders, result = improved.owner, improved.orders, improved.result
-        policy, moves, helped = improved.policy, improved.moves, improved.helped
+        policy, moves, helped, start = improved.policy, improved.moves, improved.helped, improved.start
+        chosen = traded if start == "dijkstra" else layered
+        trades, traded_imbalance = chosen.trades, chosen.imbalance_after
+        if start != "dijkstra":
+            initial_imbalance = chosen.imbalance_before
         seconds["improvement"] = time.perf_counter() - tic
     seconds["total"] = time.perf_counter() - clock
     stats = PlanStats(
         seconds=seconds,
-        trades=traded.trades,
+        trades=trades,
         improvement_moves=moves,
-        imbalance_initial=imbalance(workloads(graph, allocation.owner, n_robots)),
-        imbalance_traded=traded.imbalance_after,
+        imbalance_initial=initial_imbalance,
+        imbalance_traded=traded_imbalance,
         imbalance_final=imbalance(workloads(graph, owner, n_robots)),
         policy=policy,
         helped=helped,
+        partition=start,
     )
     return _package(structure, graph, robot_names, orders, result, method, bound, stats)
 

@@ -15,6 +15,7 @@ partition and searches, with the team simulation (`schedule_sim`) as the objecti
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +43,7 @@ class ImprovedPlan:
     moves: int
     helped: int
     evaluations: int
+    start: str
 
 
 def _score(result: SimulationResult) -> tuple[float, float]:
@@ -74,15 +76,21 @@ def best_sequencing(
 
 def improve_plan(
     graph: AssemblyGraph,
-    owner: IntArray,
+    partitions: Mapping[str, IntArray],
     n_robots: int,
     distance: FloatArray,
     time_limit: float,
 ) -> ImprovedPlan:
-    """Local search from the traded partition `owner` (see the module docstring)."""
+    """Local search from the best of the traded `partitions` (see the module docstring)."""
     deadline = time.perf_counter() + time_limit
-    sequencing, result, policy = best_sequencing(graph, owner, n_robots, distance)
-    evaluations = 3
+    best = None
+    for name, candidate in partitions.items():
+        sequencing, result, policy = best_sequencing(graph, candidate, n_robots, distance)
+        if best is None or _better(result, best[1]):
+            best = (sequencing, result, policy, name, candidate)
+    assert best is not None
+    sequencing, result, policy, start, owner = best
+    evaluations = 3 * len(partitions)
     moves = 0
     regions = RegionBorders(graph, owner, n_robots)
     cost = regions.cost
@@ -126,4 +134,5 @@ def improve_plan(
         moves=moves,
         helped=sequencing.helped,
         evaluations=evaluations,
+        start=start,
     )
