@@ -180,6 +180,12 @@ def plan_assembly(
     bound = makespan_lower_bound(graph, n_robots)
     seconds["graph"] = time.perf_counter() - clock
 
+    if len(graph) == 0:  # everything is placed already: every robot gets an empty task
+        orders = [[] for _ in robot_names]
+        seconds["total"] = time.perf_counter() - clock
+        return _package(structure, graph, robot_names, orders, simulate_orders(graph, orders), method,
+                        bound, PlanStats(seconds))
+
     if method is Method.ROUND_ROBIN:
         tic = time.perf_counter()
         orders = round_robin_orders(graph, n_robots)
