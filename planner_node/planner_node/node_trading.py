@@ -34,6 +34,8 @@ from planner_node.assembly_graph import AssemblyGraph
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 
+TRADE_MARGIN = 1e-6  # s
+
 
 
 def imbalance(workloads: FloatArray | list[float]) -> float:
@@ -188,7 +190,8 @@ class RegionBorders:
 
     def best_trade(self, giver: int, taker: int) -> int | None:
         """The border tile of `giver` next to `taker` whose move lowers the imbalance most."""
-        gap = self.load[giver] - self.load[taker]
+        # a margin keeps rounding from trading a tile back and forth when its cost equals the gap
+        gap = self.load[giver] - self.load[taker] - TRADE_MARGIN
         cost, counts = self.cost, self.counts
         candidates = [t for t in self.border.get((giver, taker), ()) if cost[t] < gap]
         if not candidates:

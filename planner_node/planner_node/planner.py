@@ -29,7 +29,7 @@ from planner_node.initial_allocation import initial_allocation
 from planner_node.layer_partition import layer_partition
 from planner_node.makespan_bound import MakespanBound, makespan_lower_bound
 from planner_node.node_trading import centroid_affinity, imbalance, trade_nodes, workloads
-from planner_node.schedule_improvement import improve_plan
+from planner_node.schedule_improvement import GOOD_ENOUGH, improve_plan
 from planner_node.schedule_sim import SimulationResult, TeamSchedule, simulate_orders, team_schedule
 from planner_node.sequencing import Policy, sequence_tiles
 from tiling_assembly.structure import Structure
@@ -224,6 +224,7 @@ def plan_assembly(
             n_robots,
             allocation.distance,
             improve_time_limit,
+            good_enough=GOOD_ENOUGH * bound.strongest,
         )
         owner, orders, result = improved.owner, improved.orders, improved.result
         policy, moves, helped, start = improved.policy, improved.moves, improved.helped, improved.start
