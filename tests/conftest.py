@@ -7,35 +7,20 @@ The variables are set at import time so that every process a test starts inherit
 
 from __future__ import annotations
 
-import fcntl
 import os
 from pathlib import Path
-from typing import IO
 
 import pytest
+
+from tiling_sim.ros_domain import claim_domain_id, isolate
 
 REPO = Path(__file__).resolve().parent.parent
 STRUCTURES = REPO / "config" / "structures"
 DATA = Path(__file__).resolve().parent / "data"
 
 
-def _claim_domain_id() -> tuple[int, IO[str]]:
-    start = os.getpid() % 100
-    for k in range(100):
-        domain = 1 + (start + k) % 100
-        handle = open(f"/tmp/tiling_assembly_test_domain_{domain}.lock", "w")  # noqa: SIM115
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
-            continue
-        return domain, handle
-    raise RuntimeError("every ROS domain id 1-100 is taken by another test session")
-
-
-_DOMAIN_ID, _DOMAIN_LOCK = _claim_domain_id()
-os.environ["ROS_DOMAIN_ID"] = str(_DOMAIN_ID)
-os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+_DOMAIN_ID, _DOMAIN_LOCK = claim_domain_id()
+isolate(_DOMAIN_ID)
 os.environ.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
 os.environ["PYTHONUNBUFFERED"] = "1"
 

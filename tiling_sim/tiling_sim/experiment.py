@@ -34,6 +34,7 @@ from tiling_assembly.structure_file import load_structure
 from tiling_assembly.time_model import TimeModel
 from tiling_sim.experiment_observer import ExperimentObserver
 from tiling_sim.process_group import ProcessGroup
+from tiling_sim.ros_domain import claim_domain_id, isolate
 from tiling_sim.trial_record import DetectionStats, TrialRecord, detection_stats
 
 PAPER_STATS = {"removed": 22, "detected": 12, "undetermined": 10, "false_positives": 0, "false_negatives": 1}
@@ -56,6 +57,7 @@ class ExperimentConfig:
     silent_robot: str = ""  # robot that never bids (tests)
     wall_limit: float = 0.0  # s per trial; 0: derived from the structure
     quiet: bool = False
+    inspection: bool = True  # run the VI robot's nodes (inspection and exploration)
 
     @property
     def robot_names(self) -> list[str]:
@@ -93,8 +95,10 @@ def executable(package: str, name: str) -> str:
 
 def removals_per_trial(total: int, trials: int, seed: int) -> list[int]:
     """Spread `total` removals over `trials` as evenly as possible, extras on seeded trials."""
+    if trials <= 0:
+        return []
     counts = [total // trials] * trials
-    extra = random.Random(seed).sample(range(trials), total % trials) if trials else []
+    extra = random.Random(seed).sample(range(trials), total % trials)
     for k in extra:
         counts[k] += 1
     return counts
@@ -113,9 +117,10 @@ class Experiment:
             "planner_node": executable("planner_node", "planner_node"),
             "auction_node": executable("auction_node", "auction_node"),
             "assembly_node": executable("assembly_node", "assembly_node"),
-            "vi_node": executable("vi_node", "vi_node"),
-            "vi_explorer": executable("vi_node", "vi_explorer"),
         }
+        if config.inspection:
+            self.executables["vi_node"] = executable("vi_node", "vi_node")
+            self.executables["vi_explorer"] = executable("vi_node", "vi_explorer")
 
     def params(self, package: str) -> list[str]:
         path = self.config.config_dir / f"{package}.yaml"
@@ -136,11 +141,13 @@ class Experiment:
             "planner_node": [exe["planner_node"], "--ros-args", *self.params("planner_node"), "-p", structure,
                              "-p", robots, *sim_time],
             "auction_node": [exe["auction_node"], "--ros-args", *self.params("auction_node"), *sim_time],
-            "vi_node": [exe["vi_node"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"), "-p", structure,
-                        *sim_time],
-            "vi_explorer": [exe["vi_explorer"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_explorer"),
-                            "-p", structure, *sim_time],
         }
+        if c.inspection:
+            commands["vi_node"] = [exe["vi_node"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
+                                   "-p", structure, *sim_time]
+            commands["vi_explorer"] = [exe["vi_explorer"], "--ros-args", "-r", "__ns:=/vi",
+                                       *self.params("vi_node"), *self.params("vi_explorer"), "-p", structure,
+                                       *sim_time]
         for robot in c.robot_names:
             extra = ["-p", "bid_in_auctions:=false"] if robot == c.silent_robot else []
             commands[robot] = [exe["assembly_node"], "--ros-args", "-r", f"__ns:=/{robot}",
@@ -148,7 +155,8 @@ class Experiment:
         return commands
 
     def expected_nodes(self) -> list[str]:
-        return ["/sim_world", "/planner_node", "/auction_node", "/vi/vi_node", "/vi/vi_explorer",
+        vi = ["/vi/vi_node", "/vi/vi_explorer"] if self.config.inspection else []
+        return ["/sim_world", "/planner_node", "/auction_node", *vi,
                 *[f"/{r}/assembly_node" for r in self.config.robot_names]]
 
     def run_trial(self, setup: TrialSetup, progress: str) -> TrialRecord:
@@ -255,6 +263,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser.add_argument("--no-baseline", action="store_true", help="skip the trial without faults")
     parser.add_argument("--kill-robot", default="", help="kill this robot's process after a few placements")
     parser.add_argument("--silent-robot", default="", help="this robot never bids (robustness check)")
+    parser.add_argument("--no-inspection", action="store_true", help="build without the VI robot")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
     args = parser.parse_args(argv)
     structure = Path(args.structure)
@@ -265,7 +274,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
         seed=args.seed, real_time_factor=args.real_time_factor,
         report_dir=Path(args.report or f"reports/{structure.stem}"), config_dir=Path(args.config).resolve(),
         baseline=not args.no_baseline, drop_probability=args.drop_probability, kill_robot=args.kill_robot,
-        silent_robot=args.silent_robot, quiet=args.quiet,
+        silent_robot=args.silent_robot, quiet=args.quiet, inspection=not args.no_inspection,
     )
 
 
@@ -274,6 +283,8 @@ def main(argv: list[str] | None = None) -> int:
 
     config = parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    domain, _lock = claim_domain_id()
+    isolate(domain)
     rclpy.init(args=None)
     try:
         experiment = Experiment(config)

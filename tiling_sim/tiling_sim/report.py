@@ -160,11 +160,12 @@ def draw_structure(structure: Structure, record: TrialRecord, path: Path) -> Non
         centre = tile.centroid
         ax.text(centre[0], centre[1], tile.aabb[1][2] + 0.005, str(tile_id), fontsize=7, ha="center")
     lo, hi = structure.bounds
-    span = max(hi - lo) * 0.6
-    mid = (lo + hi) / 2
-    ax.set_xlim(mid[0] - span, mid[0] + span)
-    ax.set_ylim(mid[1] - span, mid[1] + span)
-    ax.set_zlim(0, 2 * span)
+    margin = 0.1 * max(hi[:2] - lo[:2])
+    ax.set_xlim(lo[0] - margin, hi[0] + margin)
+    ax.set_ylim(lo[1] - margin, hi[1] + margin)
+    ax.set_zlim(0, hi[2] + margin)
+    ax.set_box_aspect((hi[0] - lo[0] + 2 * margin, hi[1] - lo[1] + 2 * margin, hi[2] + margin))
+    ax.view_init(elev=35, azim=-60)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(f"{structure.name}, trial {record.trial}: tile states at the end")

@@ -133,7 +133,7 @@ class SimWorld(Node):
         self.servers = [
             ActionServer(
                 self, PlaceTile, f"/{robot}/place_tile",
-                execute_callback=lambda handle, r=robot: self.execute_placement(r, handle),
+                execute_callback=self._placement_executor(robot),
                 goal_callback=lambda goal, r=robot: self.accept_placement(r, goal),
                 cancel_callback=lambda _handle: CancelResponse.ACCEPT,
                 callback_group=group,
@@ -257,6 +257,13 @@ class SimWorld(Node):
         self.event("removed", tile=tile_id)
 
     # --- assembly robots ----------------------------------------------------------------------
+    def _placement_executor(self, robot: str):  # type: ignore[no-untyped-def]
+        # a coroutine function of its own per robot: rclpy awaits only real coroutine functions
+        async def execute(handle) -> PlaceTile.Result:  # type: ignore[no-untyped-def]
+            return await self.execute_placement(robot, handle)
+
+        return execute
+
     def accept_placement(self, robot: str, goal: PlaceTile.Goal) -> GoalResponse:
         if robot in self.busy_robots:
             self.get_logger().warn(f"{robot} is busy: refusing a second place_tile goal")
