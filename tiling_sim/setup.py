@@ -1,0 +1,26 @@
+from setuptools import find_packages, setup
+
+package_name = "tiling_sim"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="Tiling Assembly Engineering",
+    maintainer_email="engineering@tiling-assembly.example.com",
+    description="Simulation of the tiling assembly testbed: Kinect simulator, scan bags, replay, experiments.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "replay_bag = tiling_sim.replay_bag:main",
+            "vi_accuracy = tiling_sim.vi_accuracy:main",
+            "vi_benchmark = tiling_sim.vi_benchmark:main",
+        ],
+    },
+)
