@@ -20,6 +20,9 @@ setup(
         "console_scripts": [
             "sim_world = tiling_sim.world_node:main",
             "experiment = tiling_sim.experiment:main",
+            "replay_bag = tiling_sim.replay_bag:main",
+            "vi_accuracy = tiling_sim.vi_accuracy:main",
+            "vi_benchmark = tiling_sim.vi_benchmark:main",
         ],
     },
 )

@@ -1,0 +1,146 @@
+"""The whole scan-to-states pipeline on simulated scans: alignment accuracy, the paper's
+classification end to end, and bad input that must give no states instead of wrong ones."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tiling_sim.inspection_scenarios import Scene, ViewSettings, view_from
+from tiling_sim.kinect import KINECT_V1_DEPTH, ClutterBox, KinectScene, KinectSimulator
+from vi_helpers import structure
+from vi_node.classify import TileState
+from vi_node.inspection_settings import InspectionSettings
+from vi_node.pipeline import InspectionPipeline
+from vi_node.pose_prior import OverheadPose, pose_error
+
+PAPER = InspectionSettings()
+
+
+def worst_overhead(base: tuple[float, float, float], rng: np.random.Generator) -> OverheadPose:
+    """The overhead pose at the paper's error bounds: 5 cm away and 10 degrees turned."""
+    angle = rng.uniform(0, 2 * math.pi)
+    return OverheadPose(base[0] + 0.05 * math.cos(angle), base[1] + 0.05 * math.sin(angle),
+                        base[2] + rng.choice([-1.0, 1.0]) * math.radians(10.0))
+
+
+@pytest.mark.parametrize("name", ["paper_14", "gate_9"])
+def test_alignment_from_the_paper_error_bounds_lands_within_1cm_and_1deg(name: str) -> None:
+    built = structure(name)
+    rng = np.random.default_rng(7 if name == "paper_14" else 8)
+    scene = Scene(built, tuple(built.tile_ids), ())
+    simulator = KinectSimulator(seed=9)
+    pipeline = InspectionPipeline(built, None, PAPER)
+    good = 0
+    bearings = np.linspace(0, 2 * math.pi, 6, endpoint=False)
+    for bearing in bearings:
+        view = view_from(scene.centre, bearing, rng.uniform(0.9, 1.4), rng)
+        cloud = simulator.scan(scene.kinect_scene, view.camera)
+        result = pipeline.inspect(cloud, worst_overhead(view.base, rng))
+        assert result.ok, result.reason
+        shift, turn = pose_error(result.camera_pose, view.camera)
+        good += shift <= 0.01 and turn <= math.radians(1.0)
+        assert shift < 0.03 and turn < math.radians(2.0)
+    assert good >= len(bearings) - 1
+    assert set(result.timings) >= {"prior", "floor", "candidates", "coarse", "icp", "raycast", "classify"}
+
+
+def test_paper_mode_finds_removed_large_tiles_and_reports_every_expected_tile() -> None:
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), (12, 14))  # a long rectangle and its triangle
+    rng = np.random.default_rng(10)
+    view = view_from(scene.centre, math.radians(-60.0), 1.0, rng)
+    cloud = KinectSimulator(seed=11).scan(scene.kinect_scene, view.camera)
+    result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
+    assert result.ok, result.reason
+    states = result.by_id()
+    assert sorted(states) == paper.tile_ids
+    assert states[12].state == TileState.MISSING and states[12].physical < 100 <= states[12].virtual
+    assert states[14].state == TileState.MISSING
+    assert states[3].state == TileState.OCCLUDED  # under the octagons: never visible
+    assert states[11].state == TileState.PRESENT
+    for tile in result.tiles:  # p, v and r are consistent with the state
+        if tile.state == TileState.PRESENT:
+            assert tile.ratio > 0.7 and tile.physical >= 100 and tile.virtual >= 100
+
+
+def test_expected_structure_changes_are_cached_and_respected() -> None:
+    paper = structure()
+    scene = Scene(paper, (1, 2, 3, 6, 7), ())
+    rng = np.random.default_rng(12)
+    view = view_from(scene.centre, math.radians(-90.0), 1.0, rng)
+    cloud = KinectSimulator(seed=13).scan(scene.kinect_scene, view.camera)
+    pipeline = InspectionPipeline(paper, [1, 2, 3, 6, 7], PAPER)
+    first = pipeline.model
+    result = pipeline.inspect(cloud, OverheadPose(*view.overhead))
+    assert result.ok and sorted(result.by_id()) == [1, 2, 3, 6, 7]
+    pipeline.set_expected([1, 2, 3, 6, 7, 4])
+    assert pipeline.expected_ids == (1, 2, 3, 4, 6, 7)
+    pipeline.set_expected([7, 6, 3, 2, 1])
+    assert pipeline.model is first
+
+
+def test_lower_resolution_clouds_are_scaled_from_the_intrinsics() -> None:
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), (13,))
+    rng = np.random.default_rng(14)
+    view = view_from(scene.centre, math.radians(-100.0), 0.9, rng)
+    cloud = KinectSimulator(KINECT_V1_DEPTH.scaled(320, 240), seed=15).scan(scene.kinect_scene, view.camera)
+    result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
+    assert result.ok, result.reason
+    shift, turn = pose_error(result.camera_pose, view.camera)
+    assert shift < 0.015 and turn < math.radians(1.0)
+
+
+def good_scan() -> tuple[np.ndarray, tuple[float, float, float], tuple[float, float, float]]:
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), ())
+    view = view_from(scene.centre, math.radians(-70.0), 1.0, np.random.default_rng(16), ViewSettings())
+    return KinectSimulator(seed=17).scan(scene.kinect_scene, view.camera), view.base, view.overhead
+
+
+@pytest.mark.parametrize(
+    "make, reason",
+    [
+        (lambda c: np.full_like(c, np.nan), "no valid points"),
+        (lambda c: np.zeros((0, 0, 3), np.float32), "not an organized image"),
+        (lambda c: c[..., :2], "expected an organized (H, W, 3) array"),
+        (lambda c: c.reshape(1, -1, 3), "not an organized image"),
+        (lambda c: c[:, :500], "different aspect ratio"),
+        (lambda c: np.full_like(c, np.inf), "no valid points"),
+    ],
+    ids=["all-nan", "empty", "two-channels", "one-row", "aspect", "all-inf"],
+)
+def test_bad_clouds_give_a_reason_and_no_states(make, reason: str) -> None:  # type: ignore[no-untyped-def]
+    cloud, _, overhead = good_scan()
+    result = InspectionPipeline(structure(), None, PAPER).inspect(make(cloud), OverheadPose(*overhead))
+    assert not result.ok and reason in result.reason and result.tiles == []
+
+
+@pytest.mark.parametrize("shift, turn", [(0.6, 0.0), (0.0, math.radians(40.0)), (0.25, math.radians(25.0))])
+def test_an_overhead_pose_far_from_the_truth_gives_no_states(shift: float, turn: float) -> None:
+    cloud, base, _ = good_scan()
+    overhead = OverheadPose(base[0] + shift, base[1] - 0.5 * shift, base[2] + turn)
+    result = InspectionPipeline(structure(), None, PAPER).inspect(cloud, overhead)
+    assert not result.ok and "alignment failed" in result.reason and result.tiles == []
+
+
+def test_structure_hidden_behind_another_robot_gives_no_states() -> None:
+    paper = structure()
+    rng = np.random.default_rng(18)
+    view = view_from(np.zeros(3), math.radians(-90.0), 1.2, rng)
+    robot = ClutterBox((0.0, -0.45, 0.2), (0.5, 0.3, 0.4))
+    cloud = KinectSimulator(seed=19).scan(KinectScene(paper.tiles.values(), [robot]), view.camera)
+    result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
+    assert not result.ok and result.tiles == []
+
+
+def test_everything_removed_gives_no_states() -> None:
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), tuple(paper.tile_ids))
+    view = view_from(scene.centre, 0.3, 1.0, np.random.default_rng(20))
+    cloud = KinectSimulator(seed=21).scan(scene.kinect_scene, view.camera)
+    result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
+    assert not result.ok and result.tiles == []

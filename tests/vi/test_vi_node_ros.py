@@ -1,0 +1,217 @@
+"""vi_node as a real ROS 2 process: recorded scans replayed from another process, S_a from the
+team's topics, and bad input over the middleware."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rosbags.rosbag2 import Reader
+from sensor_msgs.msg import PointCloud2, PointField
+from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, TileStateArray
+from visualization_msgs.msg import MarkerArray
+
+from tiling_assembly.messages import structure_to_msg
+from tiling_sim.scan_bag import read_truth
+from vi_helpers import REPO, SCANS, STRUCTURES, ros2_command, ros2_run, structure
+
+pytestmark = pytest.mark.ros
+
+PAPER = str(STRUCTURES / "paper_14.yaml")
+STATE_NAMES = {1: "present", 2: "missing", 3: "occluded", 4: "misplaced"}
+
+
+@contextmanager
+def vi_node(*params: str) -> Iterator[subprocess.Popen[str]]:
+    args = [ros2_command(), "run", "vi_node", "vi_node", "--ros-args", "-r", "__ns:=/vi"]
+    for p in params:
+        args += ["-p", p]
+    process = subprocess.Popen(args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        yield process
+    finally:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+class Probe:
+    """A node of the test: records what vi_node publishes, publishes what the team would."""
+
+    def __init__(self) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("vi_probe", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.states: list[TileStateArray] = []
+        self.markers: list[MarkerArray] = []
+        self.diagnostics: list[str] = []
+        self.node.create_subscription(TileStateArray, "/tile_states", self.states.append, 10)
+        self.node.create_subscription(MarkerArray, "/tile_markers", self.markers.append, 10)
+        self.node.create_subscription(
+            DiagnosticArray, "/diagnostics", lambda m: self.diagnostics.extend(s.message for s in m.status), 50
+        )
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self.cloud = self.node.create_publisher(PointCloud2, "/vi/camera/depth/points", reliable)
+        self.pose = self.node.create_publisher(PoseStamped, "/vi/overhead_pose", reliable)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+        from tiling_assembly_msgs.msg import Structure
+
+        self.structure = self.node.create_publisher(Structure, "/structure", latched)
+        self.reports = self.node.create_publisher(PlacementReport, "/placement_reports", 100)
+        self.auctions = self.node.create_publisher(AuctionAnnouncement, "/auction/announcements", 50)
+
+    def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if done():
+                return True
+            self.executor.spin_once(timeout_sec=0.05)
+        return done()
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def probe() -> Iterator[Probe]:
+    p = Probe()
+    yield p
+    p.close()
+
+
+def offline(bag: str, *args: str) -> list[dict[str, Any]]:
+    result = ros2_run("vi_node", "classify", "--structure", PAPER, "--bag", bag, *args)
+    assert result.returncode == 0, result.stderr
+    return [json.loads(line) for line in result.stdout.splitlines()]
+
+
+def test_replayed_scans_give_the_same_states_as_the_offline_command(probe: Probe) -> None:
+    bag = str(SCANS / "paper_vga")
+    truth = read_truth(bag)
+    with vi_node(f"structure_file:={PAPER}", "mode:=paper") as node:
+        assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), "vi_node did not start"
+        replay = subprocess.run(
+            [ros2_command(), "run", "tiling_sim", "replay_bag", "--bag", bag, "--rate", "0", "--gap", "1.0",
+             "--wait-subscribers", "20", "--start-delay", "1.5"],
+            cwd=REPO, capture_output=True, text=True, timeout=60,
+        )
+        assert replay.returncode == 0, replay.stderr
+        assert "published 4 messages" in replay.stdout
+        assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
+        assert node.poll() is None
+    expected = offline(bag, "--mode", "paper")
+    assert len(probe.states) == 2
+    for msg, line, scan in zip(probe.states, expected, truth["scans"], strict=True):
+        assert msg.header.stamp.sec + msg.header.stamp.nanosec / 1e9 == pytest.approx(scan["stamp_ns"] / 1e9)
+        assert msg.header.frame_id == "map" and msg.scan_count == 1
+        got = {str(s.tile_id): (STATE_NAMES[s.state], s.physical_support, s.virtual_support) for s in msg.states}
+        assert got == {k: (v["state"], v["physical"], v["virtual"]) for k, v in line["tiles"].items()}
+        assert got["10"][0] == got["13"][0] == "missing"
+        camera = scan["view"]["camera"]
+        assert abs(msg.camera_pose.position.x - camera[0][3]) < 0.02 and abs(msg.camera_pose.position.y - camera[1][3]) < 0.02
+        assert 0 < msg.alignment_rms < 0.01
+    markers = {m.id: m for m in probe.markers[-1].markers if m.action == m.ADD}
+    assert sorted(markers) == list(range(1, 15))
+    assert markers[13].color.r > 0.8 and markers[13].color.g < 0.2  # missing: red
+    assert markers[11].color.g > 0.7 and markers[11].color.r < 0.2  # present: green
+    assert any(m.startswith("classified 14 tiles") for m in probe.diagnostics)
+
+
+def bag_messages(name: str) -> list[tuple[str, Any]]:
+    out = []
+    with Reader(SCANS / name) as reader:
+        for connection, _, raw in reader.messages():
+            kind = PointCloud2 if connection.topic.endswith("points") else PoseStamped
+            out.append((connection.topic, deserialize_message(bytes(raw), kind)))
+    return out
+
+
+def test_bad_input_and_the_expected_structure_over_ros(probe: Probe) -> None:
+    messages = bag_messages("paper_qvga")
+    pose, cloud = messages[2][1], messages[3][1]  # the second view of the recording
+    paper = structure()
+    with vi_node("mode:=paper", "sensor_reliability:=reliable", "min_support:=20") as node:
+        assert probe.spin_until(lambda: probe.node.count_subscribers("/vi/camera/depth/points") > 0, 30)
+        time.sleep(0.5)
+
+        def send(scan: PointCloud2, wait_for: Callable[[], bool]) -> None:
+            probe.pose.publish(pose)
+            time.sleep(0.05)
+            probe.cloud.publish(scan)
+            assert probe.spin_until(wait_for, 20), probe.diagnostics
+
+        # no structure yet: the scan is dropped with a diagnostic
+        send(cloud, lambda: any("no structure yet" in m for m in probe.diagnostics))
+        probe.structure.publish(structure_to_msg(paper))
+        for tile in (1, 2, 3, 4, 5, 6, 7, 12):
+            probe.reports.publish(PlacementReport(tile_id=tile, outcome=PlacementReport.OUTCOME_PLACED, robot_name="robot1"))
+        probe.spin_until(lambda: False, 1.0)
+
+        nan_cloud = deserialize_message(bytes(_serialize(cloud)), PointCloud2)
+        nan_cloud.data = bytes(b"\xff\xff\xc0\x7f" * (len(cloud.data) // 4))  # every coordinate NaN
+        send(nan_cloud, lambda: any("no valid points" in m for m in probe.diagnostics))
+        wrong_frame = deserialize_message(bytes(_serialize(cloud)), PointCloud2)
+        wrong_frame.header.frame_id = "base_link"
+        send(wrong_frame, lambda: any("frame 'base_link'" in m for m in probe.diagnostics))
+        no_z = deserialize_message(bytes(_serialize(cloud)), PointCloud2)
+        no_z.fields = [PointField(name="x", offset=0, datatype=7, count=1), PointField(name="y", offset=4, datatype=7, count=1)]
+        send(no_z, lambda: any("no z field" in m for m in probe.diagnostics))
+        assert probe.states == []  # nothing wrong was published
+
+        send(cloud, lambda: len(probe.states) == 1)
+        assert sorted(s.tile_id for s in probe.states[0].states) == [1, 2, 3, 4, 5, 6, 7, 12]
+        announcement = AuctionAnnouncement(tile_id=12, reason=AuctionAnnouncement.REASON_MISSING)
+        announcement.header.stamp.sec = 50
+        probe.auctions.publish(announcement)
+        probe.spin_until(lambda: False, 0.5)
+        send(cloud, lambda: len(probe.states) == 2)
+        assert sorted(s.tile_id for s in probe.states[1].states) == [1, 2, 3, 4, 5, 6, 7]
+        replaced = PlacementReport(tile_id=12, outcome=PlacementReport.OUTCOME_PLACED, robot_name="robot2")
+        replaced.header.stamp.sec = 60
+        probe.reports.publish(replaced)
+        probe.spin_until(lambda: False, 0.5)
+        send(cloud, lambda: len(probe.states) == 3)
+        assert 12 in [s.tile_id for s in probe.states[2].states]
+        assert node.poll() is None
+
+
+def _serialize(msg: Any) -> bytes:
+    from rclpy.serialization import serialize_message
+
+    return serialize_message(msg)
+
+
+@pytest.mark.parametrize(
+    "param, text",
+    [("mode:=clever", "parameter 'mode' must be one of"), ("structure_file:=/nonexistent.yaml", "structure_file:"),
+     ("camera_xyz:=[1.0, 2.0]", "camera_xyz")],
+)
+def test_bad_parameters_stop_the_node_with_one_line(param: str, text: str) -> None:
+    result = subprocess.run(
+        [ros2_command(), "run", "vi_node", "vi_node", "--ros-args", "-p", param],
+        cwd=REPO, capture_output=True, text=True, timeout=60,
+    )
+    assert result.returncode != 0
+    lines = [line for line in result.stderr.strip().splitlines() if line]
+    assert len(lines) == 1 and text in lines[0] and "Traceback" not in result.stderr

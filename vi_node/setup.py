@@ -1,0 +1,25 @@
+from setuptools import find_packages, setup
+
+package_name = "vi_node"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="Tiling Assembly Engineering",
+    maintainer_email="engineering@tiling-assembly.example.com",
+    description="Visual inspection: aligns depth scans to the expected structure and classifies every tile.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "vi_node = vi_node.node:main",
+            "classify = vi_node.classify_bag:main",
+        ],
+    },
+)

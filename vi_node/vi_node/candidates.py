@@ -1,0 +1,64 @@
+"""Candidate points C_1 for the alignment (paper section 2.2.1, candidate filtering).
+
+"C_1 subset of C_p ... consists of a subset of points, being candidates for points belonging to
+S_p ... Using this hierarchy of bounding boxes, C_1 results in a relatively small subset of C_p.
+In addition, we omit points that belong to the floor."
+
+Only the image rows and columns that can see the expected structure's bounding box are looked at
+(the organized cloud makes that a slice, not a search), those points are put into the map frame,
+and the ones inside the box (with a margin) and above the floor are kept, with their pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from vi_node.camera_model import PinholeCamera
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Points of the scan that may belong to the structure."""
+
+    points: Array  # (N, 3) in the map frame under the pose they were selected with
+    optical: Array  # (N, 3) the same points in the optical frame (as measured)
+    pixels: NDArray[np.int64]  # (N,) flat pixel index (v * width + u) of each point
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def subset(self, keep: NDArray[np.bool_] | NDArray[np.int64]) -> Candidates:
+        return Candidates(self.points[keep], self.optical[keep], self.pixels[keep])
+
+
+def select_candidates(
+    cloud: NDArray[np.float32],
+    camera: PinholeCamera,
+    pose: Array,
+    low: Array,
+    high: Array,
+    margin: float,
+    floor_clearance: float,
+) -> Candidates:
+    """Points within `margin` of the box [low, high] (map) and higher than `floor_clearance`.
+
+    `pose` is the 4x4 pose of the optical frame in the map used to place the points.
+    """
+    box_low = np.array([low[0] - margin, low[1] - margin, floor_clearance])
+    box_high = high + margin
+    rows, cols = camera.box_roi(pose, box_low, box_high)
+    window = cloud[rows, cols]
+    h, w = window.shape[:2]
+    flat = window.reshape(-1, 3)
+    finite = np.flatnonzero(np.isfinite(flat[:, 2]))
+    optical = flat[finite].astype(np.float64)
+    world = optical @ pose[:3, :3].T + pose[:3, 3]
+    inside = np.all((world >= box_low) & (world <= box_high), axis=1)
+    local = finite[inside]
+    pixels = (local // w + rows.start) * camera.width + (local % w + cols.start)
+    return Candidates(world[inside], optical[inside], pixels.astype(np.int64))

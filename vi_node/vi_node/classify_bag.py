@@ -1,0 +1,233 @@
+"""`ros2 run vi_node classify`: the inspection pipeline on a recorded rosbag2, offline.
+
+    ros2 run vi_node classify --structure FILE --bag DIR [--expected all|ID,ID,...] [--params FILE]
+        [--camera-xyz X,Y,Z] [--camera-rpy R,P,Y] [--intrinsics FX,FY,CX,CY] [--mode default|paper]
+
+Reads `/vi/camera/depth/points` (sensor_msgs/PointCloud2) and `/vi/overhead_pose`
+(geometry_msgs/PoseStamped) from a rosbag2 folder (MCAP or SQLite, as `ros2 bag record` or
+`tiling_sim`'s writer made it), pairs every scan with the overhead pose nearest in time and prints
+one JSON object per scan, in the bag's order (DESIGN.md, inspection contract):
+{"stamp": S, "tiles": {"ID": {"state": "present"|"missing"|"occluded", "physical": N, "virtual": N}}}.
+A scan that cannot be classified prints its stamp, empty "tiles" and an "error", plus one line on
+stderr. Bad arguments, parameters or structure: one line on stderr, exit status 2; a bag that
+cannot be read: one line, exit status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tiling_assembly.structure import StructureError
+from tiling_assembly.structure_file import load_structure
+from vi_node.inspection_settings import InspectionSettings, SettingsError, load_settings, parse_tile_ids
+from vi_node.pipeline import InspectionPipeline, ScanResult
+from vi_node.point_cloud import CloudError, cloud_from_msg
+from vi_node.pose_matching import PoseBuffer
+from vi_node.pose_prior import OverheadPose
+
+CLOUD_TOPIC = "/vi/camera/depth/points"
+POSE_TOPIC = "/vi/overhead_pose"
+OPTICAL_FRAME = "camera_depth_optical_frame"
+
+
+class BagError(RuntimeError):
+    """A bag that cannot be read as an inspection recording."""
+
+
+@dataclass
+class RecordedScan:
+    stamp_ns: int
+    frame_id: str
+    cloud: NDArray[np.float32] | None  # None when the message could not be read
+    problem: str = ""
+
+
+def _stamp_ns(header: Any, fallback: int) -> int:
+    stamp = int(header.stamp.sec) * 10**9 + int(header.stamp.nanosec)
+    return stamp if stamp > 0 else fallback
+
+
+def read_recording(bag: str | Path, cloud_topic: str = CLOUD_TOPIC, pose_topic: str = POSE_TOPIC) -> tuple[PoseBuffer, Iterator[RecordedScan]]:
+    """All overhead poses of the bag, and its scans one by one (in the bag's order)."""
+    from rosbags.rosbag2 import Reader, ReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(bag)
+    if not path.is_dir():
+        raise BagError(f"{path}: not a rosbag2 folder")
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    try:
+        reader = Reader(path)
+        reader.open()
+    except (ReaderError, OSError) as error:
+        raise BagError(f"{path}: cannot open the bag: {error}") from None
+    topics = {c.topic: c for c in reader.connections}
+    if cloud_topic not in topics:
+        reader.close()
+        raise BagError(f"{path}: no {cloud_topic} topic (topics: {', '.join(sorted(topics)) or 'none'})")
+    poses = PoseBuffer(capacity=10**7)
+    pose_connections = [c for c in reader.connections if c.topic == pose_topic]
+    try:
+        for connection, timestamp, raw in reader.messages(connections=pose_connections):
+            msg = typestore.deserialize_cdr(raw, connection.msgtype)
+            p, q = msg.pose.position, msg.pose.orientation
+            try:
+                pose = OverheadPose.from_quaternion(p.x, p.y, q.x, q.y, q.z, q.w)
+            except ValueError:
+                continue  # a zero quaternion: not a pose
+            poses.add(_stamp_ns(msg.header, timestamp), pose)
+    except ReaderError as error:
+        reader.close()
+        raise BagError(f"{path}: cannot read the bag: {error}") from None
+
+    def scans() -> Iterator[RecordedScan]:
+        try:
+            cloud_connections = [c for c in reader.connections if c.topic == cloud_topic]
+            for connection, timestamp, raw in reader.messages(connections=cloud_connections):
+                try:
+                    msg = typestore.deserialize_cdr(raw, connection.msgtype)
+                except Exception as error:  # noqa: BLE001 - a corrupt message must not end the run
+                    yield RecordedScan(timestamp, "", None, f"unreadable message: {error}")
+                    continue
+                stamp = _stamp_ns(msg.header, timestamp)
+                try:
+                    cloud = cloud_from_msg(msg)
+                except CloudError as error:
+                    yield RecordedScan(stamp, msg.header.frame_id, None, f"bad cloud: {error}")
+                    continue
+                yield RecordedScan(stamp, msg.header.frame_id, cloud)
+        except ReaderError as error:
+            raise BagError(f"{path}: cannot read the bag: {error}") from None
+        finally:
+            reader.close()
+
+    return poses, scans()
+
+
+def result_json(stamp_ns: int, result: ScanResult | None, error: str = "") -> dict[str, Any]:
+    """The contract's JSON object for one scan (extra keys beyond the contract's are allowed)."""
+    out: dict[str, Any] = {"stamp": stamp_ns / 1e9, "tiles": {}}
+    if result is None or not result.ok:
+        out["error"] = error or (result.reason if result else "not classified")
+        return out
+    for tile in result.tiles:
+        entry: dict[str, Any] = {"state": tile.state.label, "physical": tile.physical, "virtual": tile.virtual,
+                                 "ratio": round(tile.ratio, 3), "residual": round(tile.residual, 4)}
+        out["tiles"][str(tile.tile_id)] = entry
+    out["alignment_rms"] = round(result.alignment_rms, 5) if math.isfinite(result.alignment_rms) else None
+    if result.camera_pose is not None:
+        out["camera_position"] = [round(float(v), 4) for v in result.camera_pose[:3, 3]]
+    return out
+
+
+def _numbers(text: str, count: int, name: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name} needs {count} comma-separated numbers, got '{text}'") from None
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"{name} needs {count} comma-separated numbers, got '{text}'")
+    return values
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        """One line, not argparse's usage block: `error: ...`, exit status 2."""
+        print(f"error: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="ros2 run vi_node classify",
+        description="Classify every expected tile in every scan of a recorded rosbag2 (JSON lines on stdout).",
+    )
+    parser.add_argument("--structure", required=True, help="structure file (config/structures/*.yaml)")
+    parser.add_argument("--bag", required=True, help="rosbag2 folder with /vi/camera/depth/points and /vi/overhead_pose")
+    parser.add_argument("--expected", default=None, help="S_a: 'all' or comma-separated tile ids (default: the parameters')")
+    parser.add_argument("--params", default=None, help="parameter file in the node's format (default: built-in = config/vi_node.yaml)")
+    parser.add_argument("--camera-xyz", type=lambda t: _numbers(t, 3, "--camera-xyz"), help="camera_link position in base_link (m)")
+    parser.add_argument("--camera-rpy", type=lambda t: _numbers(t, 3, "--camera-rpy"), help="camera_link roll,pitch,yaw in base_link (rad)")
+    parser.add_argument("--intrinsics", type=lambda t: _numbers(t, 4, "--intrinsics"), help="fx,fy,cx,cy (px) at intrinsics_size")
+    parser.add_argument("--mode", choices=["default", "paper"], default=None, help="classification mode (default: the parameters')")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return _run(args)
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+def _run(args: argparse.Namespace) -> int:
+    try:
+        settings = load_settings(args.params) if args.params else InspectionSettings()
+        overrides: dict[str, Any] = {}
+        if args.camera_xyz:
+            overrides["camera_xyz"] = args.camera_xyz
+        if args.camera_rpy:
+            overrides["camera_rpy"] = args.camera_rpy
+        if args.intrinsics:
+            overrides["intrinsics"] = args.intrinsics
+        if args.mode:
+            overrides["mode"] = args.mode
+        if args.expected is not None:
+            overrides["expected_tiles"] = args.expected
+        settings = settings.with_values(overrides, "command line")
+    except SettingsError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    try:
+        structure = load_structure(args.structure)
+    except StructureError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    expected: list[int] | None = None
+    if settings.expected_tiles.strip().lower() != "all":
+        expected = parse_tile_ids(settings.expected_tiles)
+        unknown = sorted(set(expected) - set(structure.tiles))
+        if unknown:
+            print(f"error: --expected: tiles {', '.join(map(str, unknown))} are not in {args.structure}", file=sys.stderr)
+            return 2
+    pipeline = InspectionPipeline(structure, expected, settings)
+    tolerance = int(settings.pose_tolerance * 1e9)
+    try:
+        poses, scans = read_recording(args.bag)
+        for scan in scans:
+            result: ScanResult | None = None
+            error = scan.problem
+            if not error and scan.frame_id and scan.frame_id != OPTICAL_FRAME:
+                error = f"cloud frame is '{scan.frame_id}', expected '{OPTICAL_FRAME}'"
+            if not error:
+                match = poses.nearest(scan.stamp_ns, tolerance)
+                if match is None:
+                    error = f"no overhead pose within {settings.pose_tolerance:g} s of the scan"
+                else:
+                    assert scan.cloud is not None
+                    result = pipeline.inspect(scan.cloud, match[0])
+                    error = "" if result.ok else result.reason
+            if error:
+                print(f"scan at {scan.stamp_ns / 1e9:.3f} s: {error}", file=sys.stderr)
+            print(json.dumps(result_json(scan.stamp_ns, result, error)), flush=True)
+    except BagError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

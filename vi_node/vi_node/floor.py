@@ -1,0 +1,126 @@
+"""Floor-based correction of the camera's height, roll and pitch (paper section 2.2.1, second step).
+
+"We perform floor detection in the point cloud C_p ... a transformation T_f, which aligns the
+floor's normal with the vertical axis ... has no rotation about the vertical axis, i.e. the
+Kinect's yaw, as previously determined by the overhead system, is not altered ... only the vertical
+position of K_v is affected."
+
+The floor is fitted on a subsample of the organized cloud, near where the pose prior predicts it
+(and away from the expected structure), by a noise-weighted total least squares plane with
+outlier trimming. The correction keeps the camera's yaw (of its `camera_link` in yaw-pitch-roll
+form) and horizontal position, and takes roll, pitch and height from the fitted plane.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tiling_assembly.geometry import rotation_from_rpy, rpy_from_rotation
+from vi_node.camera_model import OPTICAL_FROM_LINK
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FloorSettings:
+    """How the floor is searched for."""
+
+    stride: int = 4  # use every stride-th row and column
+    band: float = 0.04  # m, predicted height window at the camera ...
+    band_slope: float = 0.05  # ... widened by this much per metre of range (prior roll/pitch errors)
+    max_range: float = 3.5  # m, beyond this the Kinect's noise makes points useless for the fit
+    keep_out: float = 0.3  # m, ignore points this close (in x, y) to the expected structure's box
+    max_tilt: float = math.radians(10.0)  # largest believable correction of roll/pitch
+    max_height_change: float = 0.15  # m, largest believable correction of the camera height
+    min_points: int = 150
+    sample_size: int = 600  # floor points kept for the alignment
+
+
+@dataclass(frozen=True)
+class FloorFit:
+    """The floor plane in the optical frame: unit normal (pointing up, to the camera side) and the
+    camera's height above it; how many points carried the fit, their RMS distance to it, and a
+    sample of them (optical frame) for aligning to the floor later."""
+
+    normal: Array
+    height: float
+    points: int
+    rms: float
+    sample: Array
+
+
+def _axial_sigma(z: Array) -> Array:
+    return 0.0012 + 0.0019 * (z - 0.4) ** 2
+
+
+def fit_floor(
+    cloud: NDArray[np.float32],
+    prior: Array,
+    keep_out_low: Array,
+    keep_out_high: Array,
+    settings: FloorSettings = FloorSettings(),
+) -> FloorFit | None:
+    """Fit the floor plane near where `prior` (4x4 optical pose in map) predicts it; None if absent."""
+    s = max(1, settings.stride)
+    points = cloud[::s, ::s].reshape(-1, 3)
+    points = points[np.isfinite(points[:, 2]) & (points[:, 2] > 0.0) & (points[:, 2] < settings.max_range)]
+    if len(points) < settings.min_points:
+        return None
+    rotation, origin = prior[:3, :3], prior[:3, 3]
+    world = points @ rotation.T + origin
+    distance = np.sqrt(np.einsum("ij,ij->i", points, points))
+    near_floor = np.abs(world[:, 2]) < settings.band + settings.band_slope * distance
+    low, high = keep_out_low[:2] - settings.keep_out, keep_out_high[:2] + settings.keep_out
+    outside = np.any((world[:, :2] < low) | (world[:, :2] > high), axis=1)
+    points = points[near_floor & outside].astype(np.float64)
+    if len(points) < settings.min_points:
+        return None
+
+    up_prior = rotation.T @ np.array([0.0, 0.0, 1.0])
+    weights = 1.0 / _axial_sigma(points[:, 2]) ** 2
+    keep = np.ones(len(points), dtype=bool)
+    normal, offset = up_prior, 0.0
+    for _ in range(3):
+        w = weights[keep]
+        p = points[keep]
+        centre = (w[:, None] * p).sum(axis=0) / w.sum()
+        centred = p - centre
+        covariance = (w[:, None] * centred).T @ centred
+        _, vectors = np.linalg.eigh(covariance)
+        normal = vectors[:, 0]
+        if normal @ up_prior < 0:
+            normal = -normal
+        offset = float(normal @ centre)
+        residual = np.abs(points @ normal - offset) / _axial_sigma(points[:, 2])
+        new_keep = residual < 3.0
+        if new_keep.sum() < settings.min_points:
+            return None
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    height = -offset  # the floor lies below the camera: normal . p = -height on it
+    tilt = math.acos(float(np.clip(normal @ up_prior, -1.0, 1.0)))
+    if tilt > settings.max_tilt or abs(height - origin[2]) > settings.max_height_change:
+        return None
+    inliers = points[keep]
+    rms = float(np.sqrt(np.mean((inliers @ normal - offset) ** 2)))
+    sample = inliers[:: max(1, len(inliers) // settings.sample_size)]
+    return FloorFit(normal=normal, height=height, points=len(inliers), rms=rms, sample=sample)
+
+
+def correct_pose(prior: Array, floor: FloorFit) -> Array:
+    """The prior with roll, pitch and height from the floor; yaw and x, y unchanged."""
+    link_rotation = prior[:3, :3] @ OPTICAL_FROM_LINK.T
+    yaw = rpy_from_rotation(link_rotation)[2]
+    # the map's up axis seen from camera_link is (-sin p, sin r cos p, cos r cos p)
+    up = OPTICAL_FROM_LINK @ floor.normal
+    pitch = math.asin(float(np.clip(-up[0], -1.0, 1.0)))
+    roll = math.atan2(float(up[1]), float(up[2]))
+    corrected = np.eye(4)
+    corrected[:3, :3] = rotation_from_rpy(roll, pitch, yaw) @ OPTICAL_FROM_LINK
+    corrected[:3, 3] = (prior[0, 3], prior[1, 3], floor.height)
+    return corrected

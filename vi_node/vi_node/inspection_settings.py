@@ -1,0 +1,182 @@
+"""Every setting of the visual inspection, with its default, description and validation.
+
+One flat set: the node declares each field as a ROS parameter (same name, same description), the
+offline `classify` command reads the same names from a `--params` file (the node's YAML format,
+`/**: ros__parameters:`), and `config/vi_node.yaml` holds the defaults below (a test keeps the two
+equal). Lengths in m, angles in rad, times in s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+MODES = ("paper",)
+
+
+def _setting(default: Any, description: str) -> Any:
+    if isinstance(default, list):
+        return field(default_factory=lambda: list(default), metadata={"description": description})
+    return field(default=default, metadata={"description": description})
+
+
+class SettingsError(ValueError):
+    """A setting with a bad value; the message names it."""
+
+
+@dataclass(frozen=True)
+class InspectionSettings:
+    mode: str = _setting("paper", "classification: 'paper' (section 2.2.3 rules)")
+    structure_file: str = _setting("", "structure file used until /structure arrives (empty: wait for /structure)")
+    expected_tiles: str = _setting("all", "S_a until placement reports arrive: 'all' or comma-separated tile ids")
+    camera_xyz: list[float] = _setting([0.08, 0.0, 0.55], "camera_link position in base_link (m)")
+    camera_rpy: list[float] = _setting([0.0, 0.45, 0.0], "camera_link roll, pitch, yaw in base_link (rad, REP 103)")
+    intrinsics: list[float] = _setting([580.0, 580.0, 319.5, 239.5], "depth camera fx, fy, cx, cy (px) at intrinsics_size")
+    intrinsics_size: list[int] = _setting([640, 480], "image width, height (px) the intrinsics are given for; other resolutions are scaled")
+    min_range: float = _setting(0.5, "nearest depth the camera measures (m)")
+    max_range: float = _setting(4.5, "farthest depth the camera measures (m)")
+    sensor_reliability: str = _setting("auto", "clouds and overhead poses read 'reliable', 'best_effort' or 'auto' (reliable when every publisher offers it)")
+    pose_tolerance: float = _setting(0.1, "largest time between a scan and the overhead pose used for it (s)")
+    floor_stride: int = _setting(4, "floor fit uses every n-th row and column of the cloud")
+    floor_clearance: float = _setting(0.01, "points lower than this above the floor are floor (m)")
+    box_margin: float = _setting(0.03, "candidates lie within this of S_a's bounding box (m)")
+    coarse_search: bool = _setting(True, "search x, y, yaw before ICP (the overhead errors are too large for ICP alone)")
+    coarse_yaw_range: float = _setting(0.21, "coarse search +- this about the overhead yaw (rad)")
+    coarse_shift_range: float = _setting(0.10, "coarse search +- this in x and y (m)")
+    icp_max_iterations: int = _setting(10, "ICP iterations at most (the paper: 10)")
+    min_alignment_points: int = _setting(60, "a scan with fewer aligned candidates is not classified")
+    min_alignment_inliers: float = _setting(0.6, "fraction of candidates that must lie on S_a after ICP")
+    max_pose_correction: float = _setting(0.2, "largest believable correction of the overhead position (m)")
+    max_yaw_correction: float = _setting(0.35, "largest believable correction of the overhead yaw (rad)")
+    min_support: int = _setting(100, "paper: support below this many points counts as 0")
+    ratio_threshold: float = _setting(0.7, "paper: missing when min(p/v, v/p) <= this")
+    support_distance: float = _setting(0.015, "paper: a candidate supports the tile it projects onto within this (m)")
+
+    @staticmethod
+    def description(name: str) -> str:
+        return next(f.metadata["description"] for f in fields(InspectionSettings) if f.name == name)
+
+    @staticmethod
+    def names() -> list[str]:
+        return [f.name for f in fields(InspectionSettings)]
+
+    def with_values(self, values: dict[str, Any], source: str = "settings") -> InspectionSettings:
+        """A copy with `values` applied and checked (raises SettingsError naming the bad one)."""
+        known = {f.name: f for f in fields(InspectionSettings)}
+        changes: dict[str, Any] = {}
+        for name, value in values.items():
+            if name not in known:
+                raise SettingsError(f"{source}: unknown parameter '{name}'")
+            default = getattr(self, name)
+            changes[name] = _coerce(name, value, default, source)
+        settings = replace(self, **changes)
+        settings.validate(source)
+        return settings
+
+    def validate(self, source: str = "settings") -> None:
+        def bad(name: str, why: str) -> SettingsError:
+            return SettingsError(f"{source}: parameter '{name}' {why} (got {getattr(self, name)!r})")
+
+        if self.mode not in MODES:
+            raise bad("mode", f"must be one of {', '.join(MODES)}")
+        if self.sensor_reliability not in ("auto", "reliable", "best_effort"):
+            raise bad("sensor_reliability", "must be auto, reliable or best_effort")
+        for name, length in (("camera_xyz", 3), ("camera_rpy", 3), ("intrinsics", 4), ("intrinsics_size", 2)):
+            value = getattr(self, name)
+            if len(value) != length or not all(math.isfinite(float(v)) for v in value):
+                raise bad(name, f"must be {length} finite numbers")
+        if min(self.intrinsics[:2]) <= 0 or min(self.intrinsics_size) <= 0:
+            raise bad("intrinsics", "focal lengths and image size must be positive")
+        if not 0 < self.min_range < self.max_range:
+            raise bad("max_range", "must exceed min_range > 0")
+        if self.expected_tiles.strip().lower() != "all":
+            try:
+                parse_tile_ids(self.expected_tiles)
+            except ValueError as error:
+                raise bad("expected_tiles", str(error)) from None
+        positive = ("pose_tolerance", "floor_stride", "icp_max_iterations", "support_distance",
+                    "coarse_shift_range", "coarse_yaw_range", "max_pose_correction", "max_yaw_correction")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise bad(name, "must be positive")
+        non_negative = ("floor_clearance", "box_margin", "min_support", "min_alignment_points")
+        for name in non_negative:
+            if not getattr(self, name) >= 0:
+                raise bad(name, "must not be negative")
+        for name in ("ratio_threshold", "min_alignment_inliers"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise bad(name, "must be between 0 and 1")
+
+
+def _coerce(name: str, value: Any, default: Any, source: str) -> Any:
+    try:
+        if isinstance(default, bool):
+            if not isinstance(value, bool):
+                raise TypeError
+            return value
+        if isinstance(default, int):
+            if isinstance(value, bool) or int(value) != value:
+                raise TypeError
+            return int(value)
+        if isinstance(default, float):
+            if isinstance(value, bool):
+                raise TypeError
+            number = float(value)
+            if not math.isfinite(number):
+                raise TypeError
+            return number
+        if isinstance(default, str):
+            if not isinstance(value, str):
+                raise TypeError
+            return value
+        if isinstance(default, list):
+            kind = int if default and isinstance(default[0], int) else float
+            if isinstance(value, str | bytes) or any(isinstance(v, bool) for v in value):
+                raise TypeError
+            return [kind(v) for v in value]
+    except (TypeError, ValueError):
+        pass
+    raise SettingsError(f"{source}: parameter '{name}' has the wrong type (got {value!r}, expected like {default!r})")
+
+
+def parse_tile_ids(text: str) -> list[int]:
+    """'3,5, 7' -> [3, 5, 7]; raises ValueError with a reason."""
+    ids = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        if not part.isdigit() or int(part) <= 0:
+            raise ValueError(f"'{part}' is not a positive tile id")
+        ids.append(int(part))
+    if not ids:
+        raise ValueError("no tile ids given")
+    return ids
+
+
+def load_settings(path: str | Path, base: InspectionSettings | None = None) -> InspectionSettings:
+    """Settings from a ROS parameter file (`/**:` or `vi_node:` -> `ros__parameters:`).
+
+    Raises SettingsError with one line naming the file and the problem.
+    """
+    source = str(path)
+    try:
+        document = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except OSError as error:
+        raise SettingsError(f"{source}: cannot read: {error.strerror or error}") from None
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        raise SettingsError(f"{source}: not valid YAML: {str(error).splitlines()[0]}") from None
+    if not isinstance(document, dict):
+        raise SettingsError(f"{source}: expected a mapping of node names to 'ros__parameters'")
+    values: dict[str, Any] = {}
+    for node, entry in document.items():
+        if node not in ("/**", "vi_node", "/vi_node", "/vi/vi_node", "**"):
+            continue
+        if not isinstance(entry, dict) or not isinstance(entry.get("ros__parameters"), dict):
+            raise SettingsError(f"{source}: '{node}' needs a 'ros__parameters' mapping")
+        values.update(entry["ros__parameters"])
+    return (base or InspectionSettings()).with_values(values, source)

@@ -1,0 +1,345 @@
+"""`vi_node`: the visual inspection node, a thin adapter over `pipeline.InspectionPipeline`.
+
+Run in the VI robot's namespace (`ros2 run vi_node vi_node --ros-args -r __ns:=/vi --params-file
+config/vi_node.yaml`). Subscribes `camera/depth/points` (sensor_msgs/PointCloud2, organized,
+camera_depth_optical_frame) and `overhead_pose` (geometry_msgs/PoseStamped, map), and the team's
+`/structure`, `/placement_reports` and `/auction/announcements`; publishes `/tile_states`
+(one TileStateArray per classified scan), `/tile_markers` (tiles coloured by state, for RViz) and
+`/diagnostics`.
+
+S_a: the tiles claimed placed (PlacementReport OUTCOME_PLACED) of the structure on `/structure`;
+until a structure / a report arrives, the `structure_file` and `expected_tiles` parameters. A tile
+announced in an auction leaves S_a until a new placement report for it arrives. Each scan is paired
+with the overhead pose nearest in time; only the latest scan is kept while one is processed (the
+camera is faster than the inspection can be on a bad day: old scans are dropped, not queued).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point, PoseStamped
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import ColorRGBA
+from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, Structure, TileState, TileStateArray
+from visualization_msgs.msg import Marker, MarkerArray
+
+from tiling_assembly.geometry import quaternion_from_rotation
+from tiling_assembly.messages import structure_from_msg
+from tiling_assembly.structure import Structure as StructureModel
+from tiling_assembly.structure import StructureError
+from tiling_assembly.structure_file import load_structure
+from vi_node.classify import TileState as State
+from vi_node.inspection_settings import InspectionSettings, SettingsError, parse_tile_ids
+from vi_node.pipeline import InspectionPipeline, ScanResult
+from vi_node.point_cloud import CloudError, cloud_from_msg
+from vi_node.pose_matching import PoseBuffer
+from vi_node.pose_prior import OverheadPose
+
+OPTICAL_FRAME = "camera_depth_optical_frame"
+COLOURS = {  # RViz colours of the tile states
+    State.PRESENT: (0.1, 0.8, 0.1, 0.9),
+    State.MISSING: (0.9, 0.1, 0.1, 0.9),
+    State.OCCLUDED: (0.95, 0.85, 0.1, 0.9),
+    State.MISPLACED: (0.95, 0.45, 0.0, 0.9),
+    State.UNKNOWN: (0.6, 0.6, 0.6, 0.5),
+}
+
+
+class StartupError(RuntimeError):
+    """A bad parameter or file at start-up: one line, then exit non-zero."""
+
+
+def _stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * 10**9 + int(header.stamp.nanosec)
+
+
+class ViNode(Node):
+    def __init__(self) -> None:
+        super().__init__("vi_node")
+        self.settings = self._declare_settings()
+        self.structure: StructureModel | None = None
+        if self.settings.structure_file:
+            try:
+                self.structure = load_structure(self.settings.structure_file)
+            except StructureError as error:
+                raise StartupError(f"structure_file: {error}") from None
+        self.parameter_expected: list[int] | None = None
+        if self.settings.expected_tiles.strip().lower() != "all":
+            self.parameter_expected = parse_tile_ids(self.settings.expected_tiles)
+        self.placed: dict[int, int] = {}  # tile id -> stamp (ns) of its latest placement report
+        self.withdrawn: dict[int, int] = {}  # tile id -> stamp (ns) of the auction that took it out of S_a
+        self.reports_seen = False
+        self.pipeline: InspectionPipeline | None = None
+        self.poses = PoseBuffer()
+        self.pending: PointCloud2 | None = None
+        self.pending_since = 0.0
+
+        scans = MutuallyExclusiveCallbackGroup()
+        state = MutuallyExclusiveCallbackGroup()
+        self.scan_group, self.state_group = scans, state
+        self.sensor_subscriptions: dict[str, tuple[Any, ReliabilityPolicy]] = {}
+        self._match_sensor_publishers()
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+        self.create_subscription(Structure, "/structure", self._on_structure, latched, callback_group=state)
+        self.create_subscription(PlacementReport, "/placement_reports", self._on_report, 100, callback_group=state)
+        self.create_subscription(
+            AuctionAnnouncement, "/auction/announcements", self._on_announcement, 50, callback_group=state
+        )
+        self.states_pub = self.create_publisher(TileStateArray, "/tile_states", 10)
+        self.markers_pub = self.create_publisher(MarkerArray, "/tile_markers", 10)
+        self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(0.01, self._process_pending, callback_group=scans)
+        if self.settings.sensor_reliability == "auto":
+            self.create_timer(0.5, self._match_sensor_publishers, callback_group=state)
+        self._update_expected()
+        self.get_logger().info(
+            f"inspecting in {self.settings.mode} mode; structure: "
+            f"{self.structure.name if self.structure else 'waiting for /structure'}"
+        )
+
+    # -- parameters -------------------------------------------------------------------------------
+    def _declare_settings(self) -> InspectionSettings:
+        defaults = InspectionSettings()
+        values: dict[str, Any] = {}
+        for name in InspectionSettings.names():
+            descriptor = ParameterDescriptor(description=InspectionSettings.description(name), dynamic_typing=True)
+            values[name] = self.declare_parameter(name, getattr(defaults, name), descriptor).value
+        try:
+            return defaults.with_values(values, "vi_node")
+        except SettingsError as error:
+            raise StartupError(str(error)) from None
+
+    # -- S_a --------------------------------------------------------------------------------------
+    def _expected_ids(self) -> list[int] | None:
+        if self.structure is None:
+            return None
+        if self.reports_seen:
+            ids = [t for t, placed in self.placed.items() if self.withdrawn.get(t, -1) < placed]
+        elif self.parameter_expected is not None:
+            ids = self.parameter_expected
+        else:
+            ids = self.structure.tile_ids
+        return sorted(set(ids) & set(self.structure.tiles))
+
+    def _update_expected(self) -> None:
+        expected = self._expected_ids()
+        if expected is None or self.structure is None:
+            return
+        if self.pipeline is None or self.pipeline.structure is not self.structure:
+            self.pipeline = InspectionPipeline(self.structure, expected, self.settings)
+        elif tuple(expected) != self.pipeline.expected_ids:
+            self.pipeline.set_expected(expected)
+
+    def _on_structure(self, msg: Structure) -> None:
+        try:
+            structure = structure_from_msg(msg)
+        except StructureError as error:
+            self._diagnose(DiagnosticStatus.ERROR, f"ignored /structure: {error}")
+            return
+        self.structure = structure
+        self.pipeline = None
+        self._update_expected()
+        self.get_logger().info(f"structure '{structure.name}' with {len(structure)} tiles")
+
+    def _on_report(self, msg: PlacementReport) -> None:
+        self.reports_seen = True
+        stamp = _stamp_ns(msg.header)
+        if msg.outcome == PlacementReport.OUTCOME_PLACED:
+            self.placed[int(msg.tile_id)] = max(stamp, self.withdrawn.get(int(msg.tile_id), -1) + 1)
+        else:
+            self.placed.pop(int(msg.tile_id), None)
+        self._update_expected()
+
+    def _on_announcement(self, msg: AuctionAnnouncement) -> None:
+        self.withdrawn[int(msg.tile_id)] = max(_stamp_ns(msg.header), self.placed.get(int(msg.tile_id), -1))
+        self._update_expected()
+
+    # -- scans ------------------------------------------------------------------------------------
+    def _match_sensor_publishers(self) -> None:
+        """(Re)subscribe the sensor streams with the reliability that works with their publishers.
+
+        Sensor data is best effort, but Fast DDS drops every fragmented sample (a 640x480 cloud is
+        3.7 MB) on a best-effort reader, and small samples can drown in a cloud's fragments: with
+        `auto`, a stream is read reliably whenever every publisher offers it, best effort
+        otherwise (which still matches any publisher).
+        """
+        for topic, kind, callback, group, depth in (
+            ("camera/depth/points", PointCloud2, self._on_cloud, self.scan_group, 1),
+            ("overhead_pose", PoseStamped, self._on_pose, self.state_group, 50),
+        ):
+            choice = self.settings.sensor_reliability
+            if choice == "reliable":
+                wanted = ReliabilityPolicy.RELIABLE
+            elif choice == "best_effort":
+                wanted = ReliabilityPolicy.BEST_EFFORT
+            else:
+                publishers = self.get_publishers_info_by_topic(self.resolve_topic_name(topic))
+                reliable = bool(publishers) and all(
+                    p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in publishers
+                )
+                wanted = ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT
+            current = self.sensor_subscriptions.get(topic)
+            if current is not None and current[1] == wanted:
+                continue
+            if current is not None:
+                self.destroy_subscription(current[0])
+            qos = QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST, reliability=wanted)
+            subscription = self.create_subscription(kind, topic, callback, qos, callback_group=group)
+            self.sensor_subscriptions[topic] = (subscription, wanted)
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        p, q = msg.pose.position, msg.pose.orientation
+        try:
+            pose = OverheadPose.from_quaternion(p.x, p.y, q.x, q.y, q.z, q.w)
+        except ValueError:
+            self._diagnose(DiagnosticStatus.WARN, "ignored an overhead pose with a zero quaternion")
+            return
+        self.poses.add(_stamp_ns(msg.header), pose)
+
+    def _on_cloud(self, msg: PointCloud2) -> None:
+        if self.pending is not None:
+            self._diagnose(DiagnosticStatus.WARN, "dropped a scan: a newer one arrived before its overhead pose")
+        self.pending = msg
+        self.pending_since = time.monotonic()
+
+    def _process_pending(self) -> None:
+        msg = self.pending
+        if msg is None:
+            return
+        stamp = _stamp_ns(msg.header)
+        tolerance = int(self.settings.pose_tolerance * 1e9)
+        match = self.poses.nearest(stamp, tolerance)
+        waited = time.monotonic() - self.pending_since
+        latest = self.poses.latest_stamp
+        if match is None or (latest is not None and latest < stamp and waited < self.settings.pose_tolerance):
+            # a nearer pose may still be on its way: wait for one newer than the scan, but not long
+            if waited < max(1.0, 2 * self.settings.pose_tolerance):
+                return
+            self.pending = None
+            self._diagnose(
+                DiagnosticStatus.WARN,
+                f"dropped a scan: no overhead pose within {self.settings.pose_tolerance:g} s of it",
+            )
+            return
+        self.pending = None
+        self._inspect(msg, match[0])
+
+    def _inspect(self, msg: PointCloud2, overhead: OverheadPose) -> None:
+        if msg.header.frame_id != OPTICAL_FRAME:
+            self._diagnose(
+                DiagnosticStatus.ERROR, f"dropped a scan in frame '{msg.header.frame_id}', expected '{OPTICAL_FRAME}'"
+            )
+            return
+        if self.pipeline is None:
+            self._diagnose(DiagnosticStatus.WARN, "dropped a scan: no structure yet (structure_file or /structure)")
+            return
+        try:
+            cloud = cloud_from_msg(msg)
+        except CloudError as error:
+            self._diagnose(DiagnosticStatus.ERROR, f"dropped a scan: {error}")
+            return
+        try:
+            result = self.pipeline.inspect(cloud, overhead)
+        except Exception as error:  # noqa: BLE001 - a scan must never take the node down
+            self.get_logger().error(f"inspection of a scan failed unexpectedly: {error!r}")
+            self._diagnose(DiagnosticStatus.ERROR, f"inspection failed unexpectedly: {error!r}")
+            return
+        if not result.ok:
+            self._diagnose(DiagnosticStatus.WARN, f"no tile states for this scan: {result.reason}", result)
+            return
+        self.states_pub.publish(self._states_msg(msg, result))
+        self.markers_pub.publish(self._markers_msg(msg, result))
+        self._diagnose(DiagnosticStatus.OK, f"classified {len(result.tiles)} tiles", result)
+
+    # -- messages out -----------------------------------------------------------------------------
+    def _states_msg(self, scan: PointCloud2, result: ScanResult) -> TileStateArray:
+        out = TileStateArray()
+        out.header.stamp = scan.header.stamp
+        out.header.frame_id = "map"
+        out.scan_count = 1
+        if result.camera_pose is not None:
+            pose = result.camera_pose
+            out.camera_pose.position.x, out.camera_pose.position.y, out.camera_pose.position.z = (
+                float(v) for v in pose[:3, 3]
+            )
+            q = quaternion_from_rotation(pose[:3, :3])
+            o = out.camera_pose.orientation
+            o.x, o.y, o.z, o.w = q
+        out.alignment_rms = float(result.alignment_rms) if np.isfinite(result.alignment_rms) else 0.0
+        for tile in result.tiles:
+            out.states.append(TileState(
+                tile_id=tile.tile_id, state=int(tile.state), physical_support=tile.physical,
+                virtual_support=tile.virtual, support_ratio=float(tile.ratio), residual=float(tile.residual),
+            ))
+        return out
+
+    def _markers_msg(self, scan: PointCloud2, result: ScanResult) -> MarkerArray:
+        markers = MarkerArray()
+        clear = Marker(action=Marker.DELETEALL)
+        clear.header.frame_id = "map"
+        clear.ns = "tiles"
+        markers.markers.append(clear)
+        assert self.structure is not None
+        for tile in result.tiles:
+            placed = self.structure.tiles[tile.tile_id]
+            triangles, _ = placed.triangles
+            marker = Marker(type=Marker.TRIANGLE_LIST, action=Marker.ADD, id=tile.tile_id, ns="tiles")
+            marker.header.frame_id = "map"
+            marker.header.stamp = scan.header.stamp
+            marker.pose.orientation.w = 1.0
+            marker.scale.x = marker.scale.y = marker.scale.z = 1.0
+            r, g, b, a = COLOURS[tile.state]
+            marker.color = ColorRGBA(r=r, g=g, b=b, a=a)
+            corners = placed.vertices[triangles.reshape(-1)]
+            marker.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in corners]
+            markers.markers.append(marker)
+        return markers
+
+    def _diagnose(self, level: bytes | int, message: str, result: ScanResult | None = None) -> None:
+        status = DiagnosticStatus(name="vi_node: inspection", hardware_id=self.get_namespace(), message=message)
+        status.level = level if isinstance(level, bytes) else bytes([level])
+        if result is not None:
+            status.values = [KeyValue(key=f"{stage} ms", value=f"{seconds * 1e3:.1f}") for stage, seconds in result.timings.items()]
+            status.values.append(KeyValue(key="candidates", value=str(result.candidates)))
+            status.values.extend(KeyValue(key="note", value=note) for note in result.notes)
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diagnostics_pub.publish(array)
+        if status.level != DiagnosticStatus.OK:
+            self.get_logger().warning(message, throttle_duration_sec=2.0)
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = ViNode()
+    except StartupError as error:
+        print(f"error: {error}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = MultiThreadedExecutor(num_threads=2)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,46 @@
+"""Pair every scan with the overhead pose nearest to it in time (paper section 2.2.1: the overhead
+system gives the pose prior of the scan)."""
+
+from __future__ import annotations
+
+import bisect
+from collections.abc import Iterable
+
+from vi_node.pose_prior import OverheadPose
+
+
+class PoseBuffer:
+    """Overhead poses by time stamp (ns), the most recent `capacity` of them."""
+
+    def __init__(self, capacity: int = 2000, poses: Iterable[tuple[int, OverheadPose]] = ()) -> None:
+        self.capacity = capacity
+        self._stamps: list[int] = []
+        self._poses: list[OverheadPose] = []
+        for stamp, pose in poses:
+            self.add(stamp, pose)
+
+    def __len__(self) -> int:
+        return len(self._stamps)
+
+    def add(self, stamp_ns: int, pose: OverheadPose) -> None:
+        index = bisect.bisect_right(self._stamps, stamp_ns)
+        self._stamps.insert(index, stamp_ns)
+        self._poses.insert(index, pose)
+        if len(self._stamps) > self.capacity:
+            del self._stamps[0], self._poses[0]
+
+    @property
+    def latest_stamp(self) -> int | None:
+        return self._stamps[-1] if self._stamps else None
+
+    def nearest(self, stamp_ns: int, tolerance_ns: int) -> tuple[OverheadPose, int] | None:
+        """The pose nearest to `stamp_ns` and its time difference (ns), if within the tolerance."""
+        if not self._stamps:
+            return None
+        index = bisect.bisect_left(self._stamps, stamp_ns)
+        best = min(
+            (i for i in (index - 1, index) if 0 <= i < len(self._stamps)),
+            key=lambda i: abs(self._stamps[i] - stamp_ns),
+        )
+        gap = abs(self._stamps[best] - stamp_ns)
+        return (self._poses[best], gap) if gap <= tolerance_ns else None
