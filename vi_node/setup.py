@@ -20,6 +20,7 @@ setup(
         "console_scripts": [
             "vi_node = vi_node.node:main",
             "classify = vi_node.classify_bag:main",
+            "vi_explorer = vi_node.explorer_node:main",
         ],
     },
 )

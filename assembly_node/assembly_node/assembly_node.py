@@ -357,18 +357,18 @@ class AssemblyNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = None
     try:
         node = AssemblyNode()
-        rclpy.spin(node)
     except (ValueError, StructureError) as error:
         print(f"assembly_node: {error}", file=sys.stderr)
+        rclpy.try_shutdown()
         return 2
+    try:
+        rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        if node is not None:
-            node.destroy_node()
+        node.destroy_node()
         rclpy.try_shutdown()
     return 0
 

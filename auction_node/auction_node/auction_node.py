@@ -120,7 +120,10 @@ class AuctionNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def decide(self, line: str, error: bool = False) -> None:
-        (self.get_logger().warn if error else self.get_logger().info)(line)
+        if error:
+            self.get_logger().warn(line)
+        else:
+            self.get_logger().info(line)
         self.decision_pub.publish(String(data=line))
 
     def announce(self, tile_id: int, reason: int, exclude: str = "") -> None:
@@ -280,18 +283,18 @@ class AuctionNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = None
     try:
         node = AuctionNode()
-        rclpy.spin(node)
     except ValueError as error:
         print(f"auction_node: {error}", file=sys.stderr)
+        rclpy.try_shutdown()
         return 2
+    try:
+        rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        if node is not None:
-            node.destroy_node()
+        node.destroy_node()
         rclpy.try_shutdown()
     return 0
 

@@ -133,7 +133,8 @@ class Experiment:
         sim_time = ["-p", "use_sim_time:=true"]
         window = (0.15 * self.estimated_makespan, 0.75 * self.estimated_makespan)
         commands = {
-            "sim_world": [exe["sim_world"], "--ros-args", *self.params("tiling_sim"), "-p", structure,
+            "sim_world": [exe["sim_world"], "--ros-args", *self.params("vi_node"), *self.params("tiling_sim"),
+                          "-p", structure,
                           "-p", robots, "-p", f"seed:={setup.seed}", "-p", f"removals:={setup.removals}",
                           "-p", f"removal_window_start:={window[0]:.1f}", "-p", f"removal_window_end:={window[1]:.1f}",
                           "-p", f"real_time_factor:={c.real_time_factor}", "-p", "wait_for_start:=true",

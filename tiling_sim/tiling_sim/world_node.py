@@ -35,21 +35,22 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import PointCloud2
+from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Empty, String
 from tiling_assembly_msgs.action import NavigateTo, PlaceTile
 
 from tiling_assembly.geometry import (
     quaternion_from_rotation,
     rotation_from_quaternion,
-    rotation_from_rpy,
     rpy_from_rotation,
 )
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_sim.faults import FaultInjector
+from tiling_sim.kinect import ClutterBox, KinectScene, KinectSimulator, PinholeIntrinsics, camera_pose
 from tiling_sim.robot_motion import MotionModel, drive_time_to_pose, placement_phases
 from tiling_sim.world import PhysicalWorld, PlaceCheck
+from vi_node.point_cloud import cloud_bytes, cloud_fields
 
 EVENTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -111,6 +112,8 @@ class SimWorld(Node):
         )
         self.scan_period = float(p("scan_period").value)
         self.camera_mount = self._camera_mount()
+        self.robots_in_view = bool(p("robots_in_view").value)
+        self.robot_size = tuple(float(v) for v in p("robot_size").value)
 
         self.sim_now = 0.0
         self.wall_start = time.monotonic()
@@ -183,26 +186,26 @@ class SimWorld(Node):
         declare("overhead_position_error", 0.05, "Largest overhead localization error, m.")
         declare("overhead_yaw_error_deg", 10.0, "Largest overhead heading error, degrees.")
         declare("scan_period", 1.0, "s of simulated time between two Kinect scans while the VI robot stands.")
-        declare("camera_xyz", [0.1, 0.0, 0.6], "Pose of camera_link in the VI robot's base_link: x, y, z (m).")
-        declare("camera_rpy", [0.0, 0.55, 0.0], "Pose of camera_link in base_link: roll, pitch, yaw (rad).")
-        declare("intrinsics", [525.0, 525.0, 319.5, 239.5], "Kinect depth camera fx, fy, cx, cy (px).")
-        declare("image_size", [640, 480], "Kinect depth image width, height (px).")
+        # the same names as vi_node's: the runner gives both nodes config/vi_node.yaml
+        declare("camera_xyz", [0.08, 0.0, 0.55], "Pose of camera_link in the VI robot's base_link: x, y, z (m).")
+        declare("camera_rpy", [0.0, 0.45, 0.0], "Pose of camera_link in base_link: roll, pitch, yaw (rad).")
+        declare("intrinsics", [580.0, 580.0, 319.5, 239.5], "Kinect depth camera fx, fy, cx, cy (px).")
+        declare("intrinsics_size", [640, 480], "Kinect depth image width, height (px).")
+        declare("robots_in_view", True, "The assembly robots appear in the Kinect's view (as boxes).")
+        declare("robot_size", [0.33, 0.33, 0.35], "Box standing for an assembly robot: x, y, z size (m).")
 
-    def _camera_mount(self) -> tuple[np.ndarray, np.ndarray]:
-        xyz = np.array(self.get_parameter("camera_xyz").value, dtype=float)
-        rpy = self.get_parameter("camera_rpy").value
-        return rotation_from_rpy(*rpy), xyz
+    def _camera_mount(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        xyz = tuple(float(v) for v in self.get_parameter("camera_xyz").value)
+        rpy = tuple(float(v) for v in self.get_parameter("camera_rpy").value)
+        if len(xyz) != 3 or len(rpy) != 3:
+            raise ValueError("camera_xyz and camera_rpy need 3 numbers each")
+        return xyz, rpy  # type: ignore[return-value]
 
-    def _make_scanner(self):  # type: ignore[no-untyped-def]
-        """The Kinect simulator, or None when the inspection package is not installed."""
-        try:
-            from tiling_sim.kinect import KinectSimulator  # noqa: PLC0415
-        except ImportError:
-            self.get_logger().warn("no Kinect simulator available: the VI robot will not scan")
-            return None
-        width, height = self.get_parameter("image_size").value
-        return KinectSimulator.for_world(self.get_parameter("intrinsics").value, int(width), int(height),
-                                         seed=int(self.get_parameter("seed").value))
+    def _make_scanner(self) -> KinectSimulator:
+        fx, fy, cx, cy = (float(v) for v in self.get_parameter("intrinsics").value)
+        width, height = (int(v) for v in self.get_parameter("intrinsics_size").value)
+        intrinsics = PinholeIntrinsics(fx, fy, cx, cy, width, height)
+        return KinectSimulator(intrinsics, seed=int(self.get_parameter("seed").value))
 
     # --- simulated time -----------------------------------------------------------------------
     def on_start(self, _msg: Empty) -> None:
@@ -371,30 +374,34 @@ class SimWorld(Node):
         handle.succeed()
         return result
 
-    def camera_pose_true(self) -> tuple[np.ndarray, np.ndarray]:
-        """camera_link in map from the VI robot's true pose."""
-        x, y, yaw = self.vi_pose
-        base_rotation = _yaw_rotation(yaw)
-        mount_rotation, mount_xyz = self.camera_mount
-        return base_rotation @ mount_rotation, np.array([x, y, 0.0]) + base_rotation @ mount_xyz
-
     def maybe_scan(self) -> None:
-        if self.scanner is None or self.vi_moving or self.scan_pending or self.sim_now < self.next_scan:
+        if self.vi_moving or self.scan_pending or self.sim_now < self.next_scan:
             return
         self.next_scan = self.sim_now + self.scan_period
         self.scan_pending = True
         with self.lock:
             present = sorted(self.world.present)
+            robots = [] if not self.robots_in_view else [
+                ClutterBox((x, y, self.robot_size[2] / 2), self.robot_size) for x, y in self.positions.values()
+            ]
         stamp = self.stamp()
-        overhead = self.overhead_pose("vi")
-        rotation, position = self.camera_pose_true()
-        self.overhead_pubs["vi"].publish(overhead)
-        self.scan_pool.submit(self.scan, present, rotation, position, stamp)
+        self.overhead_pubs["vi"].publish(self.overhead_pose("vi"))
+        x, y, yaw = self.vi_pose
+        pose = camera_pose(x, y, yaw, *self.camera_mount)
+        self.scan_pool.submit(self.scan, present, robots, pose, stamp)
 
-    def scan(self, present: list[int], rotation: np.ndarray, position: np.ndarray, stamp) -> None:  # type: ignore[no-untyped-def]
+    def scan(self, present: list[int], robots: list[ClutterBox], pose: np.ndarray, stamp) -> None:  # type: ignore[no-untyped-def]
+        """One Kinect frame from the VI robot's true camera pose (runs on the scan thread)."""
         try:
-            cloud = self.scanner.scan_structure(self.structure, present, rotation, position, stamp)
-            self.cloud_pub.publish(cloud)
+            scene = KinectScene.from_structure(self.structure, present, clutter=robots)
+            cloud = self.scanner.scan(scene, pose)
+            msg = PointCloud2(height=cloud.shape[0], width=cloud.shape[1], is_bigendian=False,
+                              point_step=12, row_step=12 * cloud.shape[1], is_dense=False)
+            msg.header.stamp = stamp
+            msg.header.frame_id = "camera_depth_optical_frame"
+            msg.fields = [PointField(name=n, offset=o, datatype=d, count=c) for n, o, d, c in cloud_fields()]
+            msg.data = cloud_bytes(cloud)
+            self.cloud_pub.publish(msg)
         except Exception as error:  # noqa: BLE001 - a failed scan must not stop the world
             self.get_logger().error(f"Kinect simulation failed: {error}")
         finally:
@@ -408,20 +415,20 @@ def _yaw_rotation(yaw: float) -> np.ndarray:
 
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = None
     try:
         node = SimWorld()
+    except (ValueError, StructureError) as error:
+        print(f"sim_world: {error}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
         executor = MultiThreadedExecutor(num_threads=3)
         executor.add_node(node)
         executor.spin()
-    except (ValueError, StructureError) as error:
-        print(f"sim_world: {error}", file=sys.stderr)
-        return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        if node is not None:
-            node.destroy_node()
+        node.destroy_node()
         rclpy.try_shutdown()
     return 0
 

@@ -1,0 +1,122 @@
+"""Prioritized exploration: where the VI robot looks next (paper section 2.2).
+
+"The VI-robot ... runs a prioritized exploration algorithm, which aims to map and update the
+dynamically changing physical structure with priority on currently targeted building regions."
+And: "If a tile is in state 'occluded', the VI-robot has to re-scan the building from a different
+position before the building process can proceed."
+
+Each expected tile carries a priority: highest just after a robot reported it placed (it has to be
+checked), high while its state is undetermined (occluded, or never seen), and otherwise growing
+with the time since it was last seen, so that every tile is looked at again now and then (tiles
+can disappear while building). Candidate viewpoints stand on rings around the structure, facing
+it; the next one is the candidate whose view (predicted by ray tracing S_a, see
+`viewpoint.predict_visible`) resolves the most priority, less a small cost for driving there.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tiling_assembly.structure import Structure
+
+Pose2 = tuple[float, float, float]  # x, y, yaw of base_link in map
+
+PRESENT, MISSING, OCCLUDED, UNKNOWN = "present", "missing", "occluded", "unknown"
+
+
+def ring_viewpoints(structure: Structure, radii: Sequence[float], count: int) -> list[Pose2]:
+    """Base poses on circles around the structure's centre, each facing the centre."""
+    lo, hi = structure.bounds
+    cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
+    poses = []
+    for ring, radius in enumerate(radii):
+        offset = math.pi / count * (ring % 2)  # stagger the rings
+        for k in range(count):
+            angle = offset + 2 * math.pi * k / count
+            x, y = cx + radius * math.cos(angle), cy + radius * math.sin(angle)
+            poses.append((x, y, math.atan2(cy - y, cx - x)))
+    return poses
+
+
+@dataclass(frozen=True)
+class PriorityWeights:
+    just_placed: float = 4.0  # placed since it was last judged
+    undetermined: float = 2.0  # occluded or never judged
+    stale_time: float = 60.0  # s after which a tile seen present is worth 1 again
+
+
+@dataclass
+class TileKnowledge:
+    state: str = UNKNOWN
+    judged_at: float = -math.inf  # s, when a scan last judged it
+    placed_at: float = -math.inf  # s, when a robot last reported it placed
+
+
+@dataclass
+class Exploration:
+    """What the VI robot knows about each expected tile, and the choice of the next viewpoint."""
+
+    weights: PriorityWeights = field(default_factory=PriorityWeights)
+    travel_cost: float = 0.5  # priority points per metre of driving
+    tiles: dict[int, TileKnowledge] = field(default_factory=dict)
+
+    def expect(self, tile_ids: Iterable[int]) -> None:
+        """The tiles S_a holds now (others are forgotten)."""
+        keep = set(tile_ids)
+        for tile in keep - set(self.tiles):
+            self.tiles[tile] = TileKnowledge()
+        for tile in set(self.tiles) - keep:
+            del self.tiles[tile]
+
+    def placed(self, tile_id: int, now: float) -> None:
+        self.tiles.setdefault(tile_id, TileKnowledge()).placed_at = now
+
+    def judged(self, states: dict[int, str], now: float) -> None:
+        for tile_id, state in states.items():
+            if tile_id in self.tiles:
+                knowledge = self.tiles[tile_id]
+                knowledge.state, knowledge.judged_at = state, now
+
+    def priority(self, now: float) -> dict[int, float]:
+        """Weight of seeing each expected tile now."""
+        w = self.weights
+        out = {}
+        for tile_id, k in self.tiles.items():
+            if k.placed_at > k.judged_at:
+                out[tile_id] = w.just_placed
+            elif k.state in (OCCLUDED, UNKNOWN):
+                out[tile_id] = w.undetermined
+            else:
+                out[tile_id] = min(1.0, (now - k.judged_at) / w.stale_time)
+        return out
+
+    def unresolved(self) -> list[int]:
+        return sorted(t for t, k in self.tiles.items() if k.placed_at > k.judged_at or k.state in (OCCLUDED, UNKNOWN))
+
+    def choose(
+        self,
+        candidates: Sequence[Pose2],
+        here: Pose2,
+        now: float,
+        visible: Callable[[Pose2], set[int]],
+    ) -> tuple[int, float]:
+        """Index of the best candidate and its score.
+
+        `visible(pose)` predicts which expected tiles a scan from `pose` would resolve.
+        """
+        priority = self.priority(now)
+        best, best_score = 0, -math.inf
+        for index, pose in enumerate(candidates):
+            gain = sum(priority.get(t, 0.0) for t in visible(pose))
+            score = gain - self.travel_cost * math.dist(here[:2], pose[:2])
+            if score > best_score + 1e-9:
+                best, best_score = index, score
+        return best, best_score
+
+
+def nearest(candidates: Sequence[Pose2], pose: Pose2) -> int:
+    return int(np.argmin([math.dist(c[:2], pose[:2]) for c in candidates]))

@@ -1,0 +1,212 @@
+"""vi_explorer: drives the VI robot from viewpoint to viewpoint (paper section 2.2, prioritized
+exploration). Runs in the VI robot's namespace (`/vi`), next to `vi_node`.
+
+A thin adapter around `exploration.Exploration` and `viewpoint.ViewPredictor`. In: the latched
+`/structure`, `/placement_reports` (tiles claimed placed: the priority), `/auction/announcements`
+(tiles no longer expected), `/tile_states` (what the scans judged). Out: goals to the base's
+`navigate_to` action. After each arrival it waits for the first tile states of a scan taken there
+(or a timeout, when the scan could not be aligned), then chooses again.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.action import ActionClient
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from tiling_assembly_msgs.action import NavigateTo
+from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, Structure, TileState, TileStateArray
+
+from tiling_assembly.geometry import quaternion_from_rotation, rotation_from_rpy
+from tiling_assembly.messages import structure_from_msg
+from tiling_assembly.structure import StructureError
+from tiling_assembly.structure_file import load_structure
+from vi_node.camera_model import PinholeCamera
+from vi_node.exploration import (
+    MISSING,
+    OCCLUDED,
+    PRESENT,
+    UNKNOWN,
+    Exploration,
+    PriorityWeights,
+    ring_viewpoints,
+)
+from vi_node.pose_prior import CameraMount
+from vi_node.viewpoint import ViewPredictor
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+STATES = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING, TileState.OCCLUDED: OCCLUDED}
+
+
+class ExplorerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("vi_explorer")
+
+        def declare(name: str, default: object, description: str) -> object:
+            return self.declare_parameter(name, default, ParameterDescriptor(description=description)).value
+
+        self.structure_file = str(declare("structure_file", "", "Structure used until /structure arrives."))
+        xyz = declare("camera_xyz", [0.08, 0.0, 0.55], "camera_link in base_link: x, y, z (m).")
+        rpy = declare("camera_rpy", [0.0, 0.45, 0.0], "camera_link in base_link: roll, pitch, yaw (rad).")
+        intrinsics = declare("intrinsics", [580.0, 580.0, 319.5, 239.5], "Depth camera fx, fy, cx, cy (px).")
+        size = declare("intrinsics_size", [640, 480], "Image width, height the intrinsics are given for (px).")
+        self.min_support = int(declare("min_support", 100, "Virtual points a tile needs to be judged."))
+        self.range = (float(declare("min_range", 0.5, "Nearest depth measured (m).")),
+                      float(declare("max_range", 4.5, "Farthest depth measured (m).")))
+        self.radii = [float(r) for r in declare("viewpoint_radii", [0.9, 1.2], "Rings of viewpoints (m).")]
+        self.per_ring = int(declare("viewpoints_per_ring", 8, "Viewpoints on each ring."))
+        self.settle = float(declare("settle_time", 0.5, "s after arriving before a scan counts."))
+        self.scan_timeout = float(declare("scan_timeout", 6.0, "s to wait at a viewpoint for tile states."))
+        travel_cost = float(declare("travel_cost", 0.5, "Priority points one metre of driving costs."))
+        if not self.radii or any(r <= 0 for r in self.radii) or self.per_ring < 1:
+            raise ValueError("viewpoint_radii must be positive and viewpoints_per_ring at least 1")
+        self.mount = CameraMount(tuple(xyz), tuple(rpy))  # type: ignore[arg-type]
+        fx, fy, cx, cy = (float(v) for v in intrinsics)  # type: ignore[union-attr]
+        self.camera = PinholeCamera(fx, fy, cx, cy, int(size[0]), int(size[1]))  # type: ignore[index]
+
+        self.exploration = Exploration(PriorityWeights(), travel_cost=travel_cost)
+        self.structure = None
+        self.candidates: list[tuple[float, float, float]] = []
+        self.placed: dict[int, int] = {}  # tile -> stamp (ns) of its latest placement report
+        self.withdrawn: dict[int, int] = {}  # tile -> stamp (ns) of its latest announcement
+        self.predictor: ViewPredictor | None = None
+        self.predictor_tiles: tuple[int, ...] = ()
+        self.here: tuple[float, float, float] | None = None
+        self.arrived_at: float | None = None  # s; None while driving
+        self.driving = False
+
+        self.navigate = ActionClient(self, NavigateTo, "navigate_to")
+        self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
+        self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
+        self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
+        self.create_subscription(TileStateArray, "/tile_states", self.on_states, COORDINATION)
+        self.create_timer(0.5, self.tick)
+        if self.structure_file:
+            self.set_structure(load_structure(self.structure_file))
+
+    def now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def set_structure(self, structure) -> None:  # type: ignore[no-untyped-def]
+        self.structure = structure
+        self.candidates = ring_viewpoints(structure, self.radii, self.per_ring)
+        self.update_expected()
+
+    def expected(self) -> list[int]:
+        if self.structure is None:
+            return []
+        if not self.placed:
+            return self.structure.tile_ids
+        return sorted(t for t, stamp in self.placed.items() if self.withdrawn.get(t, -1) < stamp)
+
+    def update_expected(self) -> None:
+        expected = self.expected()
+        self.exploration.expect(expected)
+        if self.structure is not None and tuple(expected) != self.predictor_tiles:
+            self.predictor_tiles = tuple(expected)
+            self.predictor = ViewPredictor([self.structure.tiles[t] for t in expected], self.camera, self.mount,
+                                           self.min_support, self.range[1], self.range[0])
+
+    def on_structure(self, msg: Structure) -> None:
+        try:
+            self.set_structure(structure_from_msg(msg, "/structure"))
+        except StructureError as error:
+            self.get_logger().error(f"ignoring /structure: {error}")
+
+    def on_report(self, msg: PlacementReport) -> None:
+        if msg.outcome != PlacementReport.OUTCOME_PLACED:
+            return
+        self.placed[msg.tile_id] = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        self.update_expected()
+        self.exploration.placed(msg.tile_id, self.now())
+
+    def on_announcement(self, msg: AuctionAnnouncement) -> None:
+        self.withdrawn[msg.tile_id] = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        self.update_expected()
+
+    def on_states(self, msg: TileStateArray) -> None:
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        self.exploration.judged({s.tile_id: STATES.get(s.state, UNKNOWN) for s in msg.states}, stamp)
+        if self.arrived_at is not None and stamp >= self.arrived_at + self.settle:
+            self.arrived_at = None  # this viewpoint is done
+            self.tick()
+
+    def tick(self) -> None:
+        if self.structure is None or self.driving or self.predictor is None:
+            return
+        now = self.now()
+        if self.arrived_at is not None and now < self.arrived_at + self.scan_timeout:
+            return  # still waiting for a scan from here
+        if self.arrived_at is not None:
+            self.get_logger().warn("no tile states from this viewpoint (scan not aligned?); moving on")
+            self.arrived_at = None
+        if not self.navigate.server_is_ready():
+            self.get_logger().warn("navigate_to is not available", throttle_duration_sec=10.0)
+            return
+        here = self.here or self.candidates[0]
+        index, score = self.exploration.choose(self.candidates, here, now, self.predictor.resolvable)
+        self.go_to(self.candidates[index], score)
+
+    def go_to(self, pose: tuple[float, float, float], score: float) -> None:
+        goal = NavigateTo.Goal()
+        goal.target = PoseStamped()
+        goal.target.header.frame_id = "map"
+        goal.target.header.stamp = self.get_clock().now().to_msg()
+        goal.target.pose.position.x, goal.target.pose.position.y = pose[0], pose[1]
+        q = quaternion_from_rotation(rotation_from_rpy(0.0, 0.0, pose[2]))
+        o = goal.target.pose.orientation
+        o.x, o.y, o.z, o.w = q
+        self.driving = True
+        unresolved = self.exploration.unresolved()
+        self.get_logger().info(
+            f"next viewpoint ({pose[0]:+.2f}, {pose[1]:+.2f}, {math.degrees(pose[2]):+.0f} deg), score {score:.1f}; "
+            f"unresolved tiles {unresolved}"
+        )
+        self.navigate.send_goal_async(goal).add_done_callback(lambda f: self.on_goal(f, pose))
+
+    def on_goal(self, future, pose) -> None:  # type: ignore[no-untyped-def]
+        handle = future.result()
+        if handle is None or not handle.accepted:
+            self.driving = False
+            self.get_logger().warn("navigate_to refused the goal")
+            return
+        handle.get_result_async().add_done_callback(lambda f: self.on_arrival(f, pose))
+
+    def on_arrival(self, future, pose) -> None:  # type: ignore[no-untyped-def]
+        self.driving = False
+        result = future.result().result
+        if not result.success:
+            self.get_logger().warn(f"could not reach the viewpoint: {result.message}")
+            return
+        self.here = pose
+        self.arrived_at = self.now()
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = ExplorerNode()
+    except (ValueError, StructureError) as error:
+        print(f"vi_explorer: {error}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
