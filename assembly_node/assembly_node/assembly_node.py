@@ -351,7 +351,7 @@ class AssemblyNode(Node):
             status.plan_revision = max(state.plan_revision, 0)
             status.remaining_tiles = state.task()
             status.placed_tiles = list(state.placed_by_me)
-            status.remaining_workload = float(self.time_model.workload(state.structure, state.task()))
+            status.remaining_workload = self.time_model.workload(state.structure, state.task())
         self.status_pub.publish(status)
 
 

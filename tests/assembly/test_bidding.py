@@ -38,3 +38,10 @@ def test_robot_waiting_for_the_tile_with_a_near_cache_bids_lower() -> None:
     waiting_near = compute_bid(PAPER, MODEL, [11, 1, 2], 4, (-0.2, 0.0), 30.0, 10.0)
     assert waiting_near.supported_count == 1 and busy_far.supported_count == 0
     assert waiting_near.value < busy_far.value
+
+
+def test_a_robot_with_nothing_left_bids_in_floats() -> None:
+    # message fields are float64: an int here crashes the node when it publishes the bid
+    bid = compute_bid(PAPER, MODEL, [], 5, None, 30.0, 10.0)
+    assert isinstance(bid.workload, float) and isinstance(bid.value, float)
+    assert bid.value == 0.0

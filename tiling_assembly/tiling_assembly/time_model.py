@@ -60,4 +60,4 @@ class TimeModel:
 
     def workload(self, structure: Structure, tile_ids: Iterable[int]) -> float:
         """Total cost of a set of tiles (s): a robot's workload w_i."""
-        return sum(self.tile_cost(structure, t) for t in tile_ids)
+        return float(sum((self.tile_cost(structure, t) for t in tile_ids), 0.0))
