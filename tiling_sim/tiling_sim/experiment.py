@@ -111,6 +111,7 @@ class Experiment:
         model = TimeModel()
         self.estimated_makespan = model.workload(self.structure, self.structure.tile_ids) / config.robots
         self.sim_limit = 6.0 * self.estimated_makespan + 300.0
+        self.run_id = f"{os.getpid()}-{time.time_ns()}"  # marks every process of this run
         self.wall_limit = config.wall_limit or self.sim_limit / config.real_time_factor + 60.0
         self.executables = {
             "sim_world": executable("tiling_sim", "sim_world"),
@@ -170,8 +171,9 @@ class Experiment:
         executor = SingleThreadedExecutor()
         executor.add_node(observer)
         with ProcessGroup(log_dir=logs) as group:
+            env = dict(os.environ, TILING_EXPERIMENT_RUN=self.run_id)
             for name, argv in self.node_commands(setup).items():
-                group.start(name, argv)
+                group.start(name, argv, env)
             wall_start = time.monotonic()
             started_wall = None
             killed = False

@@ -8,6 +8,7 @@ re-placements marked).
 
 from __future__ import annotations
 
+import json
 import statistics
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -236,4 +237,25 @@ def write(result: ExperimentResult) -> Path:
             lines += [f"Trial {record.trial}:", "", *[f"- {d}" for d in record.decisions], ""]
     path = folder / "report.md"
     path.write_text("\n".join(lines) + "\n")
+    (folder / "results.json").write_text(json.dumps(results_json(result), indent=1) + "\n")
     return path
+
+
+def results_json(result: ExperimentResult) -> dict[str, object]:
+    """The figures of every trial, for scripts and tests."""
+    trials = []
+    for record in result.records:
+        stats = detection_stats(record)
+        trials.append({
+            "trial": record.trial, "seed": record.seed, "complete": record.complete(),
+            "failure": record.failure, "timed_out": record.timed_out, "makespan": record.makespan(),
+            "removed": stats.removed, "detected": stats.detected, "undetermined": stats.undetermined,
+            "missing_called_present": stats.missing_called_present,
+            "present_called_missing": stats.present_called_missing,
+            "auctions": len(record.awards), "award_latencies": record.award_latencies,
+            "plans": [{"revision": p.revision, "tasks": p.tasks} for p in record.plans],
+            "placements": [{"t": e.t, "tile": e.tile, "robot": e.robot} for e in record.events if e.kind == "placed"],
+            "removals": [{"t": e.t, "tile": e.tile} for e in record.removals()],
+            "decisions": record.decisions,
+        })
+    return {"structure": result.structure.name, "robots": result.config.robot_names, "trials": trials}

@@ -1,0 +1,125 @@
+"""End to end over real ROS processes: build, inspect, correct (paper sections 2.3 and 3).
+
+Each test runs the experiment command, which starts the simulated world, the planner, the auction
+node, one assembly node per robot and the VI robot's inspection and exploration nodes as separate
+OS processes on a private ROS domain, and checks what happened from the run's results.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import REPO, STRUCTURES
+
+
+def run_experiment(report: Path, *args: str, timeout: float = 240.0) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
+    command = [
+        str(REPO / "install/tiling_sim/lib/tiling_sim/experiment"),
+        "--structure", str(STRUCTURES / "paper_14.yaml"), "--report", str(report), "--quiet",
+        "--real-time-factor", "30", "--no-baseline", *args,
+    ]
+    result = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=timeout)
+    results_file = report / "results.json"
+    data = json.loads(results_file.read_text()) if results_file.exists() else {}
+    return result, data
+
+
+@pytest.fixture
+def experiment(tmp_path: Path):  # type: ignore[no-untyped-def]
+    return lambda *args, **kw: run_experiment(tmp_path / "report", *args, **kw)
+
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def _only_trial(data: dict) -> dict:  # type: ignore[type-arg]
+    (trial,) = data["trials"]
+    return trial
+
+
+def test_removed_tile_is_detected_auctioned_and_replaced(experiment) -> None:  # type: ignore[no-untyped-def]
+    result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3")
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    trial = _only_trial(data)
+    assert trial["complete"] and trial["removed"] == 1 and trial["detected"] == 1
+    (removal,) = trial["removals"]
+    replaced = [p for p in trial["placements"] if p["tile"] == removal["tile"] and p["t"] > removal["t"]]
+    assert replaced, "the removed tile was never placed again"
+    won = [d for d in trial["decisions"] if f"for tile {removal['tile']}:" in d and " wins with " in d]
+    assert won and replaced[0]["robot"] in won[0]
+    assert "Every trial finished the structure correctly: yes (1/1)" in result.stdout
+
+
+def test_killed_robot_has_its_tiles_finished_by_the_other(experiment) -> None:  # type: ignore[no-untyped-def]
+    result, data = experiment("--trials", "1", "--removals", "0", "--kill-robot", "robot2")
+    trial = _only_trial(data)
+    assert trial["complete"], result.stdout[-2000:]
+    assert any("robot2 lost" in d for d in trial["decisions"])
+    assert any("replanned after losing robot2" in d for d in trial["decisions"])
+    killed_at = max(p["t"] for p in trial["placements"] if p["robot"] == "robot2")
+    after = {p["tile"] for p in trial["placements"] if p["t"] > killed_at}
+    assert after and all(p["robot"] == "robot1" for p in trial["placements"] if p["t"] > killed_at)
+    assert len({p["tile"] for p in trial["placements"]}) == 14
+
+
+def test_robot_that_never_bids_does_not_block_an_auction(experiment) -> None:  # type: ignore[no-untyped-def]
+    result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3", "--silent-robot", "robot2")
+    trial = _only_trial(data)
+    assert trial["complete"], result.stdout[-2000:]
+    awards = [d for d in trial["decisions"] if " wins with " in d]
+    assert awards and all("robot1 wins" in d and "no answer from robot2" in d for d in awards)
+
+
+def _processes_of_run() -> dict[str, list[int]]:
+    """Live processes started by experiment runs, by their run marker."""
+    runs: dict[str, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes().split(b"\0")
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        for item in environ:
+            if item.startswith(b"TILING_EXPERIMENT_RUN=") and state != "Z":
+                runs.setdefault(item.split(b"=", 1)[1].decode(), []).append(int(entry.name))
+    return runs
+
+
+def test_ctrl_c_stops_the_run_and_leaves_no_process(tmp_path: Path) -> None:
+    before = set(_processes_of_run())
+    command = [str(REPO / "install/tiling_sim/lib/tiling_sim/experiment"), "--structure",
+               str(STRUCTURES / "paper_14.yaml"), "--report", str(tmp_path), "--trials", "1", "--quiet"]
+    runner = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        children: list[int] = []
+        while time.monotonic() < deadline and len(children) < 5:
+            children = [p for run, pids in _processes_of_run().items() if run not in before for p in pids]
+            time.sleep(0.2)
+        assert len(children) >= 5, "the run's nodes did not start"
+        time.sleep(2.0)
+        runner.send_signal(signal.SIGINT)
+        _, stderr = runner.communicate(timeout=30)
+    finally:
+        if runner.poll() is None:
+            runner.kill()
+    assert runner.returncode == 130
+    assert "interrupted: every node was stopped" in stderr and "Traceback" not in stderr
+    time.sleep(0.5)
+    assert [p for run, pids in _processes_of_run().items() if run not in before for p in pids] == []
+
+
+def test_runner_failure_leaves_no_process(experiment) -> None:  # type: ignore[no-untyped-def]
+    before = set(_processes_of_run())
+    result, _ = experiment("--trials", "1", "--structure", str(REPO / "tests/data/structures/invalid/floating_tile.yaml"))
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: ") and "floating" in result.stderr and "Traceback" not in result.stderr
+    assert [p for run, pids in _processes_of_run().items() if run not in before for p in pids] == []

@@ -1,0 +1,70 @@
+"""Processes of a run are stopped, and die with their runner even when it is killed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+from tiling_sim.process_group import ProcessGroup, session_members
+
+
+def _wait_gone(pids: list[int], timeout: float = 5.0) -> list[int]:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        alive = session_members(pids)
+        if not alive:
+            return []
+        time.sleep(0.05)
+    return session_members(pids)
+
+
+def test_stop_ends_every_process_and_its_children(tmp_path: Path) -> None:
+    group = ProcessGroup(log_dir=tmp_path)
+    # a shell that ignores SIGINT and SIGTERM and has a child of its own: only SIGKILL works
+    stubborn = "trap '' INT TERM; sleep 60 & wait"
+    group.start("stubborn", ["bash", "-c", stubborn])
+    group.start("polite", [sys.executable, "-c", "import time; print('up', flush=True); time.sleep(60)"])
+    time.sleep(0.3)
+    sessions = group.pids()
+    assert len(session_members(sessions)) >= 3
+    started = time.monotonic()
+    group.stop(grace=0.5)
+    assert time.monotonic() - started < 8.0
+    assert _wait_gone(sessions) == []
+    assert (tmp_path / "polite.log").read_text().startswith("up")  # its output went to its log
+
+
+def test_children_die_when_the_runner_is_killed(tmp_path: Path) -> None:
+    runner = textwrap.dedent(
+        f"""
+        import sys, time
+        sys.path[:0] = {sys.path!r}
+        from tiling_sim.process_group import ProcessGroup
+        group = ProcessGroup()
+        group.start("child", ["sleep", "60"])
+        print(group.pids()[0], flush=True)
+        time.sleep(60)
+        """
+    )
+    parent = subprocess.Popen([sys.executable, "-c", runner], stdout=subprocess.PIPE, text=True)
+    assert parent.stdout is not None
+    child = int(parent.stdout.readline())
+    assert session_members([child])
+    os.kill(parent.pid, signal.SIGKILL)  # no clean-up code runs
+    parent.wait()
+    assert _wait_gone([child]) == []
+
+
+def test_kill_stops_one_process_at_once(tmp_path: Path) -> None:
+    with ProcessGroup() as group:
+        group.start("a", ["sleep", "60"])
+        group.start("b", ["sleep", "60"])
+        group.kill("a")
+        assert group.dead() == ["a"]
+        sessions = group.pids()
+    assert _wait_gone(sessions) == []
