@@ -140,7 +140,8 @@ def read_parameter_file(path: str | Path) -> tuple[PlannerParameters, list[str]]
     except OSError as error:
         raise ParameterError(f"{path}: cannot read the file: {error.strerror or error}") from None
     except (yaml.YAMLError, UnicodeDecodeError) as error:
-        raise ParameterError(f"{path}: not a valid YAML parameter file ({str(error).splitlines()[0]})") from None
+        first_line = str(error).splitlines()[0]
+        raise ParameterError(f"{path}: not a valid YAML parameter file ({first_line})") from None
     if not isinstance(document, Mapping):
         raise ParameterError(f"{path}: a parameter file maps node names to 'ros__parameters'")
     values: dict[str, Any] = {}

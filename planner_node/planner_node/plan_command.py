@@ -56,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"warning: {args.params}: unknown parameter '{name}' ignored", file=sys.stderr)
     if parameters.robot_names and len(parameters.robot_names) != args.robots:
         raise ParameterError(
-            f"{args.params}: robot_names lists {len(parameters.robot_names)} robots but --robots is {args.robots}"
+            f"{args.params}: robot_names lists {len(parameters.robot_names)} robots "
+            f"but --robots is {args.robots}"
         )
     names = list(parameters.robot_names) or default_robot_names(args.robots)
     method = Method(args.method) if args.method else parameters.planning_method()

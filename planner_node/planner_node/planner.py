@@ -36,6 +36,7 @@ from tiling_assembly.structure import Structure
 from tiling_assembly.time_model import TimeModel
 
 DEFAULT_IMPROVE_TIME_LIMIT = 1.0  # s of local search in the default method
+PAPER_START_LIMIT = 2000  # tiles up to which the default method also tries the paper's partition
 ROBOT_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 
@@ -200,27 +201,30 @@ def plan_assembly(
     tic = time.perf_counter()
     allocation = initial_allocation(graph, n_robots)
     seconds["allocation"] = time.perf_counter() - tic
-    tic = time.perf_counter()
-    traded = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
-    seconds["trading"] = time.perf_counter() - tic
-    initial_imbalance = imbalance(workloads(graph, allocation.owner, n_robots))
-
-    tic = time.perf_counter()
     if method is Method.PAPER:
+        tic = time.perf_counter()
+        traded = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
+        seconds["trading"] = time.perf_counter() - tic
+        tic = time.perf_counter()
         owner = traded.owner
         orders = sequence_tiles(graph, owner, n_robots, Policy.MAX_SLACK, allocation.distance).orders
         result = simulate_orders(graph, orders)
-        policy, moves, helped, start = Policy.MAX_SLACK.value, 0, 0, "dijkstra"
-        trades, traded_imbalance = traded.trades, traded.imbalance_after
         seconds["sequencing"] = time.perf_counter() - tic
+        policy, moves, helped, start = Policy.MAX_SLACK.value, 0, 0, "dijkstra"
+        trading = {"dijkstra": traded}
     else:
+        tic = time.perf_counter()
         sliced = layer_partition(graph, n_robots)
-        layered = trade_nodes(graph, sliced, n_robots, centroid_affinity(graph, sliced, n_robots))
-        seconds["layers"] = time.perf_counter() - tic
+        trading = {"layers": trade_nodes(graph, sliced, n_robots, centroid_affinity(graph, sliced, n_robots))}
+        starts = {"layers": trading["layers"].owner, "layers-untraded": sliced}
+        if len(graph) <= PAPER_START_LIMIT:
+            trading["dijkstra"] = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
+            starts["dijkstra"] = trading["dijkstra"].owner
+        seconds["partitions"] = time.perf_counter() - tic
         tic = time.perf_counter()
         improved = improve_plan(
             graph,
-            {"layers": layered.owner, "layers-untraded": sliced, "dijkstra": traded.owner},
+            starts,
             n_robots,
             allocation.distance,
             improve_time_limit,
@@ -228,17 +232,15 @@ def plan_assembly(
         )
         owner, orders, result = improved.owner, improved.orders, improved.result
         policy, moves, helped, start = improved.policy, improved.moves, improved.helped, improved.start
-        chosen = traded if start == "dijkstra" else layered
-        trades, traded_imbalance = chosen.trades, chosen.imbalance_after
-        if start != "dijkstra":
-            initial_imbalance = chosen.imbalance_before
         seconds["improvement"] = time.perf_counter() - tic
+    chosen = trading["dijkstra" if start == "dijkstra" else "layers"]
+    trades, traded_imbalance = chosen.trades, chosen.imbalance_after
     seconds["total"] = time.perf_counter() - clock
     stats = PlanStats(
         seconds=seconds,
         trades=trades,
         improvement_moves=moves,
-        imbalance_initial=initial_imbalance,
+        imbalance_initial=chosen.imbalance_before,
         imbalance_traded=traded_imbalance,
         imbalance_final=imbalance(workloads(graph, owner, n_robots)),
         policy=policy,

@@ -25,8 +25,6 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from tiling_assembly_msgs.msg import AssemblyPlan, Structure
-from tiling_assembly_msgs.srv import Replan
 
 from planner_node.parameters import NODE_NAME, ParameterError, PlannerParameters, parameters_from_values
 from planner_node.plan_messages import plan_to_msg
@@ -34,6 +32,8 @@ from planner_node.planner import Plan, PlanningError, plan_assembly, replan_asse
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.msg import AssemblyPlan, Structure
+from tiling_assembly_msgs.srv import Replan
 
 EXIT_BAD_INPUT = 2
 
@@ -71,7 +71,11 @@ class PlannerNode(Node):
         self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.revision = 0
         self.plan = plan_assembly(
-            self.structure, self.known_robots, self.time_model, self.method, self.parameters.improve_time_limit
+            self.structure,
+            self.known_robots,
+            self.time_model,
+            self.method,
+            self.parameters.improve_time_limit,
         )
         structure_msg = structure_to_msg(self.structure)
         structure_msg.header.stamp = self.get_clock().now().to_msg()
@@ -168,7 +172,7 @@ class PlannerNode(Node):
             )
         except PlanningError as error:
             return self._refuse(response, str(error))
-        except Exception as error:  # noqa: BLE001 - a service must answer, never take the node down
+        except Exception as error:
             return self._refuse(response, f"internal error while replanning: {error}")
         self.revision += 1
         self.plan = plan

@@ -61,7 +61,8 @@ class ImprovedPlan:
 def _better(a: SimulationResult, b: SimulationResult) -> bool:
     if a.makespan < b.makespan - IMPROVEMENT_EPSILON:
         return True
-    return a.makespan <= b.makespan + IMPROVEMENT_EPSILON and a.total_wait < b.total_wait - IMPROVEMENT_EPSILON
+    same = a.makespan <= b.makespan + IMPROVEMENT_EPSILON
+    return same and a.total_wait < b.total_wait - IMPROVEMENT_EPSILON
 
 
 def best_sequencing(

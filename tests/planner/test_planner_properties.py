@@ -41,7 +41,8 @@ def _index_sets(graph, owner: np.ndarray, n_robots: int) -> list[list[int]]:
 @SETTINGS
 @given(structure=structures(), n_robots=st.integers(1, 7), method=st.sampled_from(list(Method)))
 def test_every_plan_is_valid(structure: Structure, n_robots: int, method: Method) -> None:
-    plan = plan_assembly(structure, default_robot_names(n_robots), TIME_MODEL, method, improve_time_limit=0.05)
+    robots = default_robot_names(n_robots)
+    plan = plan_assembly(structure, robots, TIME_MODEL, method, improve_time_limit=0.05)
     assert plan_problems(structure, plan.orders(), TIME_MODEL) == []
     assert plan.schedule.completed
     assert plan.makespan >= plan.lower_bound - 1e-6
