@@ -23,12 +23,26 @@ TIME_MODEL = TimeModel()
 SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
+def separate_piles(sizes: list[int], seed: int) -> dict:
+    """Random piles side by side with gaps between them: a structure in several pieces."""
+    document = random_cluster(sizes[0], seed=seed)
+    tiles = list(document["tiles"])
+    for k, size in enumerate(sizes[1:], start=1):
+        for tile in random_cluster(size, seed=seed + k)["tiles"]:
+            x, y, z = tile["position"]
+            tiles.append({**tile, "id": len(tiles) + 1, "position": [x + 1.0 * k, y, z]})
+    return {**document, "tiles": tiles}
+
+
 @st.composite
 def structures(draw: st.DrawFn) -> Structure:
-    kind = draw(st.sampled_from(["cluster", "cluster", "wall", "pyramid", "bridge"]))
+    kind = draw(st.sampled_from(["cluster", "cluster", "piles", "wall", "pyramid", "bridge"]))
     size = draw(st.integers(min_value=4, max_value=60))
     if kind == "cluster":
         document = random_cluster(size, seed=draw(st.integers(0, 10_000)))
+    elif kind == "piles":
+        sizes = draw(st.lists(st.integers(2, 25), min_size=2, max_size=4))
+        document = separate_piles(sizes, draw(st.integers(0, 10_000)))
     else:
         document = {"wall": wall, "pyramid": pyramid, "bridge": bridge}[kind](size)
     return parse_structure(document, f"{kind}-{size}")
