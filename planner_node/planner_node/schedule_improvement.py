@@ -7,8 +7,9 @@ simulation (`schedule_sim`) as the objective (makespan, then total waiting):
 
 1. every candidate partition (the paper's traded Dijkstra regions, the layer-balanced ones of
    `layer_partition`) is sequenced with every policy of `sequencing` (the paper's maximum slack,
-   critical-path list scheduling, and the same with robots helping their neighbours); the plan that
-   finishes first is the start;
+   critical-path list scheduling, and the same with robots helping others when the helped robot
+   would finish later, or whenever the helper would wait); the plan that finishes first is the
+   start, the most local one among equals;
 2. local search, while the plan is more than `GOOD_ENOUGH` above the lower bound and time is left:
    take the robot that finishes last and try, one at a time, (a) handing one of its border tiles to
    a touching robot that finishes earlier and (b) handing a tile it waits for to the robot whose
@@ -38,12 +39,16 @@ IMPROVEMENT_EPSILON = 1e-6  # s
 GOOD_ENOUGH = 1.005  # makespan / strongest lower bound at which the search stops
 MOVES_PER_ROUND = 24  # candidate moves tried for the last robot before giving up
 
+HELP_FREELY = 10.0  # help margin (in tile costs) of the free-helping policy
+
+# (name, policy, help margin): the first of equally good plans wins, so the more local go first
 ALL_POLICIES = (
-    ("critical-path", Policy.CRITICAL_PATH, False),
-    ("max-slack", Policy.MAX_SLACK, False),
-    ("critical-path+help", Policy.CRITICAL_PATH, True),
+    ("critical-path", Policy.CRITICAL_PATH, None),
+    ("max-slack", Policy.MAX_SLACK, None),
+    ("critical-path+help", Policy.CRITICAL_PATH, 0.0),
+    ("critical-path+help-freely", Policy.CRITICAL_PATH, HELP_FREELY),
 )
-SEARCH_POLICIES = (ALL_POLICIES[0], ALL_POLICIES[2])
+SEARCH_POLICIES = (ALL_POLICIES[0], ALL_POLICIES[2], ALL_POLICIES[3])
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,8 +79,8 @@ def best_sequencing(
 ) -> tuple[Sequencing, SimulationResult, str]:
     """Orders by every policy, simulated; the ones that finish first (then wait least)."""
     best = None
-    for name, policy, helping in policies:
-        sequencing = sequence_tiles(graph, owner, n_robots, policy, distance, helping)
+    for name, policy, margin in policies:
+        sequencing = sequence_tiles(graph, owner, n_robots, policy, distance, margin)
         result = simulate_orders(graph, sequencing.orders)
         if best is None or _better(result, best[1]):
             best = (sequencing, result, name)
