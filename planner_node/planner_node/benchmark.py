@@ -52,9 +52,8 @@ def run_case(structure: Structure, robots: int, parameters: PlannerParameters, r
         times = []
         for _ in range(repeat):
             tic = time.perf_counter()
-            plans[method] = plan_assembly(
-                structure, names, parameters.time_model(), method, parameters.improve_time_limit
-            )
+            options = {**parameters.planning_options(), "method": method}
+            plans[method] = plan_assembly(structure, names, parameters.time_model(), **options)
             times.append(time.perf_counter() - tic)
         seconds[method] = statistics.median(times)
     return seconds, plans

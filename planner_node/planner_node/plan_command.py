@@ -60,11 +60,11 @@ def run(args: argparse.Namespace) -> int:
             f"but --robots is {args.robots}"
         )
     names = list(parameters.robot_names) or default_robot_names(args.robots)
-    method = Method(args.method) if args.method else parameters.planning_method()
+    options = parameters.planning_options()
+    if args.method:
+        options["method"] = Method(args.method)
     structure = load_structure(args.structure)
-    plan = plan_assembly(
-        structure, names, parameters.time_model(), method, parameters.improve_time_limit
-    )
+    plan = plan_assembly(structure, names, parameters.time_model(), **options)
     if args.format == "table":
         print(plan_table(plan, structure))
     else:

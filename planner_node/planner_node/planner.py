@@ -5,8 +5,10 @@ Methods:
 * `paper`: the method of section 2.1 (after its reference [11]): multi-source Dijkstra from
   exterior seeds (`initial_allocation`), node trading (`node_trading`), and orders that maximise
   the time between a support's placement and the placement of the tile it carries (`sequencing`).
-* `default`: the paper's partition and trading, then local search over trades and orders with the
-  team simulation as the objective (`schedule_improvement`), for a makespan near the lower bound.
+* `default`: layer-balanced regions (`layer_partition`) as well as the paper's, traded, then
+  list scheduling with critical-path priority in which a robot that would wait may help another,
+  and local search over trades and orders with the team simulation as the objective
+  (`schedule_improvement`), for a makespan near the lower bound.
 * `round-robin`: what a user might write instead: tiles layer by layer, dealt to the robots in
   turn, each robot placing its tiles in that order. For comparison only.
 
@@ -171,8 +173,14 @@ def plan_assembly(
     time_model: TimeModel,
     method: Method = Method.DEFAULT,
     improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT,
+    help_neighbours: bool = True,
 ) -> Plan:
-    """Split `structure` among the robots and order each robot's tiles (see the module docstring)."""
+    """Split `structure` among the robots and order each robot's tiles (see the module docstring).
+
+    `help_neighbours` (default method): let a robot that would wait place ready tiles of another
+    robot when that finishes the build sooner; without it every robot keeps to its own connected
+    region.
+    """
     check_robot_names(robot_names)
     n_robots = len(robot_names)
     seconds: dict[str, float] = {}
@@ -229,6 +237,7 @@ def plan_assembly(
             allocation.distance,
             improve_time_limit,
             good_enough=GOOD_ENOUGH * bound.strongest,
+            help_neighbours=help_neighbours,
         )
         owner, orders, result = improved.owner, improved.orders, improved.result
         policy, moves, helped, start = improved.policy, improved.moves, improved.helped, improved.start
@@ -257,6 +266,7 @@ def replan_assembly(
     time_model: TimeModel,
     method: Method = Method.DEFAULT,
     improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT,
+    help_neighbours: bool = True,
 ) -> Plan:
     """Plan the tiles not yet placed for `robot_names`, starting now (times from 0).
 
@@ -270,5 +280,5 @@ def replan_assembly(
         raise PlanningError(f"placed tile ids not in structure '{structure.name}': {shown}")
     check_robot_names(robot_names)
     remaining = structure.subset(t for t in structure.tiles if t not in placed)
-    plan = plan_assembly(remaining, robot_names, time_model, method, improve_time_limit)
+    plan = plan_assembly(remaining, robot_names, time_model, method, improve_time_limit, help_neighbours)
     return replace(plan, supports={t: tuple(structure.supports[t]) for t in remaining.tiles})

@@ -127,20 +127,25 @@ def improve_plan(
     distance: FloatArray,
     time_limit: float,
     good_enough: float = 0.0,
+    help_neighbours: bool = True,
 ) -> ImprovedPlan:
     """Best start among `partitions`, then local search (see the module docstring).
 
     `good_enough` (s): a makespan at which to stop searching (e.g. just above the lower bound).
+    Without `help_neighbours` only policies that keep every robot to its region are used, so the
+    regions stay connected.
     """
+    start_policies = ALL_POLICIES if help_neighbours else ALL_POLICIES[:2]
+    search_policies = SEARCH_POLICIES if help_neighbours else SEARCH_POLICIES[:1]
     deadline = time.perf_counter() + time_limit
     best = None
     for name, candidate in partitions.items():
-        sequencing, result, policy = best_sequencing(graph, candidate, n_robots, distance)
+        sequencing, result, policy = best_sequencing(graph, candidate, n_robots, distance, start_policies)
         if best is None or _better(result, best[1]):
             best = (sequencing, result, policy, name, candidate)
     assert best is not None
     sequencing, result, policy, start, partition = best
-    evaluations = len(ALL_POLICIES) * len(partitions)
+    evaluations = len(start_policies) * len(partitions)
     moves = 0
     regions = RegionBorders(graph, partition, n_robots)
     while result.makespan > good_enough and time.perf_counter() < deadline:
@@ -156,8 +161,8 @@ def improve_plan(
             tried.add((tile, taker))
             regions.move(tile, taker)
             trial_owner = np.array(regions.owner, dtype=np.int64)
-            trial = best_sequencing(graph, trial_owner, n_robots, distance, SEARCH_POLICIES)
-            evaluations += len(SEARCH_POLICIES)
+            trial = best_sequencing(graph, trial_owner, n_robots, distance, search_policies)
+            evaluations += len(search_policies)
             if _better(trial[1], result):
                 sequencing, result, policy = trial
                 moves += 1

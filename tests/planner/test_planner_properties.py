@@ -69,6 +69,19 @@ def test_every_plan_is_valid(structure: Structure, n_robots: int, method: Method
 
 @SETTINGS
 @given(structure=structures(), n_robots=st.integers(1, 7))
+def test_default_method_without_helping_keeps_every_region_connected(
+    structure: Structure, n_robots: int
+) -> None:
+    robots = default_robot_names(n_robots)
+    plan = plan_assembly(structure, robots, TIME_MODEL, improve_time_limit=0.05, help_neighbours=False)
+    assert plan_problems(structure, plan.orders(), TIME_MODEL) == []
+    assert plan.stats.helped == 0
+    for task in plan.tasks:
+        assert region_is_connected(structure, task.tile_ids)
+
+
+@SETTINGS
+@given(structure=structures(), n_robots=st.integers(1, 7))
 def test_trading_keeps_regions_connected_and_never_worsens_the_imbalance(
     structure: Structure, n_robots: int
 ) -> None:
