@@ -244,6 +244,8 @@ def plan_assembly(
         seconds["improvement"] = time.perf_counter() - tic
     chosen = trading["dijkstra" if start == "dijkstra" else "layers"]
     trades, traded_imbalance = chosen.trades, chosen.imbalance_after
+    if start == "layers-untraded":  # the layer slices did best as they were, without trading
+        trades, traded_imbalance = 0, chosen.imbalance_before
     seconds["total"] = time.perf_counter() - clock
     stats = PlanStats(
         seconds=seconds,
