@@ -114,6 +114,19 @@ class TileShape:
     polygon: Array | None = None  # prism only: the counter-clockwise base polygon
     height: float = 0.0  # prism only
 
+    @cached_property
+    def centroid(self) -> Array:
+        """Centre of volume in the tile frame (computed once per tile type)."""
+        v = self.vertices
+        tris = np.array([t for face in self.faces for t in _face_triangles(v, face)], dtype=np.int64)
+        a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+        ref = v.mean(axis=0)
+        vol = np.einsum("ij,ij->i", a - ref, np.cross(b - ref, c - ref)) / 6.0
+        total = vol.sum()
+        if abs(total) < 1e-15:
+            return ref
+        return ref + ((a + b + c - 3 * ref) / 4.0 * vol[:, None]).sum(axis=0) / total
+
 
 def prism_shape(polygon_points: Array, height: float) -> TileShape:
     """A right prism: `polygon_points` (N, 2) extruded from z = 0 to z = height."""
@@ -315,16 +328,8 @@ class PlacedTile:
 
     @cached_property
     def centroid(self) -> Array:
-        """Centre of volume in the structure frame."""
-        tris, _ = self.triangles
-        v = self.vertices
-        a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
-        ref = v.mean(axis=0)
-        vol = np.einsum("ij,ij->i", a - ref, np.cross(b - ref, c - ref)) / 6.0
-        total = vol.sum()
-        if abs(total) < 1e-15:
-            return ref
-        return ref + ((a + b + c - 3 * ref) / 4.0 * vol[:, None]).sum(axis=0) / total
+        """Centre of volume in the structure frame (the shape's, moved rigidly: no per-tile work)."""
+        return self.shape.centroid @ self.rotation.T + self.position
 
     @cached_property
     def volume(self) -> float:

@@ -33,9 +33,13 @@ class TimeModel:
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"type_place_time[{name}] must be a non-negative number of seconds")
 
+    def place_duration(self, type_name: str) -> float:
+        """Place time of one tile of `type_name` (s): lower, release and retract."""
+        return self.type_place_time.get(type_name, self.place_time)
+
     def handling_time(self, type_name: str) -> float:
         """Pick plus place time of one tile of `type_name` (s)."""
-        return self.pick_time + self.type_place_time.get(type_name, self.place_time)
+        return self.pick_time + self.place_duration(type_name)
 
     def cache_distance(self, structure: Structure, tile_id: int) -> float:
         """Floor distance from the tile's type cache to the tile's centre (m); 0 without a cache."""
@@ -45,9 +49,13 @@ class TimeModel:
             return 0.0
         return math.hypot(tile.centroid[0] - cache[0], tile.centroid[1] - cache[1])
 
+    def travel_time(self, structure: Structure, tile_id: int) -> float:
+        """Seconds of one trip between the tile's type cache and the tile (one way)."""
+        return self.cache_distance(structure, tile_id) / self.travel_speed
+
     def tile_cost(self, structure: Structure, tile_id: int) -> float:
         """Seconds a robot spends on one tile: to the cache and back, pick and place."""
-        travel = 2.0 * self.cache_distance(structure, tile_id) / self.travel_speed
+        travel = 2.0 * self.travel_time(structure, tile_id)
         return self.handling_time(structure.tiles[tile_id].type_name) + travel
 
     def workload(self, structure: Structure, tile_ids: Iterable[int]) -> float:

@@ -1,0 +1,180 @@
+"""The planner's parameters: defaults, validation, and reading a ROS 2 parameter file without ROS.
+
+The node declares these as ROS parameters; the `plan` command reads the same file format
+(`config/planner_node.yaml`: `/**: ros__parameters: ...`), so both plan under the same time model.
+`type_place_time` is a map from tile type to seconds (`type_place_time.square: 10.0` as a ROS
+parameter); types not listed take `place_time`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from planner_node.planner import (
+    DEFAULT_IMPROVE_TIME_LIMIT,
+    Method,
+    PlanningError,
+    check_robot_names,
+    default_robot_names,
+)
+from tiling_assembly.time_model import TimeModel
+
+NODE_NAME = "planner_node"
+_DEFAULT_TIMES = TimeModel()
+
+
+class ParameterError(ValueError):
+    """A parameter value or parameter file that cannot be used; the message is one line."""
+
+
+@dataclass(frozen=True)
+class PlannerParameters:
+    structure_file: str = ""
+    num_robots: int = 2
+    robot_names: tuple[str, ...] = ()
+    method: str = Method.DEFAULT.value
+    improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT
+    help_neighbours: bool = True
+    pick_time: float = _DEFAULT_TIMES.pick_time
+    place_time: float = _DEFAULT_TIMES.place_time
+    travel_speed: float = _DEFAULT_TIMES.travel_speed
+    type_place_time: Mapping[str, float] = field(default_factory=dict)
+
+    def robots(self) -> list[str]:
+        """robot_names when given, else robot1..robotN."""
+        return list(self.robot_names) if self.robot_names else default_robot_names(self.num_robots)
+
+    def planning_method(self) -> Method:
+        return Method(self.method)
+
+    def planning_options(self) -> dict[str, Any]:
+        """Keyword arguments of `plan_assembly` / `replan_assembly` besides the time model."""
+        return {
+            "method": self.planning_method(),
+            "improve_time_limit": self.improve_time_limit,
+            "help_neighbours": self.help_neighbours,
+        }
+
+    def time_model(self) -> TimeModel:
+        return TimeModel(
+            pick_time=self.pick_time,
+            place_time=self.place_time,
+            travel_speed=self.travel_speed,
+            type_place_time=dict(self.type_place_time),
+        )
+
+    def validate(self) -> None:
+        """Raise ParameterError naming the first bad value."""
+        if isinstance(self.num_robots, bool) or not isinstance(self.num_robots, int) or self.num_robots < 1:
+            raise ParameterError(f"num_robots must be a whole number >= 1, got {self.num_robots!r}")
+        methods = [m.value for m in Method]
+        if self.method not in methods:
+            raise ParameterError(f"method must be one of {', '.join(methods)}, got {self.method!r}")
+        if not (math.isfinite(self.improve_time_limit) and self.improve_time_limit >= 0):
+            raise ParameterError(f"improve_time_limit must be >= 0 s, got {self.improve_time_limit!r}")
+        if self.robot_names:
+            try:
+                check_robot_names(list(self.robot_names))
+            except PlanningError as error:
+                raise ParameterError(f"robot_names: {error}") from None
+        try:
+            self.time_model()
+        except (TypeError, ValueError) as error:
+            raise ParameterError(str(error)) from None
+
+
+_FIELDS = {
+    "structure_file": str,
+    "num_robots": int,
+    "robot_names": list,
+    "method": str,
+    "improve_time_limit": float,
+    "help_neighbours": bool,
+    "pick_time": float,
+    "place_time": float,
+    "travel_speed": float,
+}
+
+
+def _flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(_flatten(value, f"{name}."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def _convert(name: str, value: Any, kind: type) -> Any:
+    if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value)
+    if kind is int and isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if kind is bool and isinstance(value, bool):
+        return value
+    if kind is str and isinstance(value, str):
+        return value
+    if kind is list and isinstance(value, list) and all(isinstance(v, str) for v in value):
+        return tuple(value)
+    wanted = {
+        float: "a number",
+        int: "a whole number",
+        bool: "true or false",
+        str: "a string",
+        list: "a list of strings",
+    }[kind]
+    raise ParameterError(f"{name} must be {wanted}, got {value!r}")
+
+
+def parameters_from_values(values: Mapping[str, Any]) -> tuple[PlannerParameters, list[str]]:
+    """Parameters from flat ROS parameter values; also returns the names it did not know."""
+    known: dict[str, Any] = {}
+    per_type: dict[str, float] = {}
+    unknown = []
+    for name, value in values.items():
+        if name in _FIELDS:
+            known[name] = _convert(name, value, _FIELDS[name])
+        elif name.startswith("type_place_time."):
+            per_type[name.split(".", 1)[1]] = _convert(name, value, float)
+        elif name != "use_sim_time":
+            unknown.append(name)
+    parameters = PlannerParameters(**known, type_place_time=per_type)
+    parameters.validate()
+    return parameters, unknown
+
+
+def read_parameter_file(path: str | Path) -> tuple[PlannerParameters, list[str]]:
+    """Read the planner's entries of a ROS 2 parameter file (see the module docstring)."""
+    try:
+        document = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except OSError as error:
+        raise ParameterError(f"{path}: cannot read the file: {error.strerror or error}") from None
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        first_line = str(error).splitlines()[0]
+        raise ParameterError(f"{path}: not a valid YAML parameter file ({first_line})") from None
+    if not isinstance(document, Mapping):
+        raise ParameterError(f"{path}: a parameter file maps node names to 'ros__parameters'")
+    values: dict[str, Any] = {}
+    matched = False
+    for node, entry in document.items():
+        name = str(node).lstrip("/")
+        if name not in ("**", NODE_NAME) and not name.endswith(f"/{NODE_NAME}"):
+            continue
+        if not isinstance(entry, Mapping) or not isinstance(entry.get("ros__parameters"), Mapping):
+            raise ParameterError(f"{path}: entry '{node}' needs a 'ros__parameters' mapping")
+        values.update(_flatten(entry["ros__parameters"]))
+        matched = True
+    if not matched:
+        raise ParameterError(f"{path}: no '/**' or '{NODE_NAME}' entry with 'ros__parameters'")
+    try:
+        return parameters_from_values(values)
+    except ParameterError as error:
+        raise ParameterError(f"{path}: {error}") from None

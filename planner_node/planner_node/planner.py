@@ -1,0 +1,286 @@
+"""The planner: paper section 2.1 end to end, plus our improvement step and a simple baseline.
+
+Methods:
+
+* `paper`: the method of section 2.1 (after its reference [11]): multi-source Dijkstra from
+  exterior seeds (`initial_allocation`), node trading (`node_trading`), and orders that maximise
+  the time between a support's placement and the placement of the tile it carries (`sequencing`).
+* `default`: layer-balanced regions (`layer_partition`) as well as the paper's, traded, then
+  list scheduling with critical-path priority in which a robot that would wait may help another,
+  and local search over trades and orders with the team simulation as the objective
+  (`schedule_improvement`), for a makespan near the lower bound.
+* `round-robin`: what a user might write instead: tiles layer by layer, dealt to the robots in
+  turn, each robot placing its tiles in that order. For comparison only.
+
+Every plan is evaluated by the team simulation (`schedule_sim`) and reported against the lower
+bound (`makespan_bound`). `replan_assembly` plans the tiles not yet placed for the robots left.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from enum import Enum
+
+import numpy as np
+
+from planner_node.assembly_graph import AssemblyGraph, build_graph
+from planner_node.initial_allocation import initial_allocation
+from planner_node.layer_partition import layer_partition
+from planner_node.makespan_bound import MakespanBound, makespan_lower_bound
+from planner_node.node_trading import centroid_affinity, imbalance, trade_nodes, workloads
+from planner_node.schedule_improvement import GOOD_ENOUGH, improve_plan
+from planner_node.schedule_sim import SimulationResult, TeamSchedule, simulate_orders, team_schedule
+from planner_node.sequencing import Policy, sequence_tiles
+from tiling_assembly.structure import Structure
+from tiling_assembly.time_model import TimeModel
+
+DEFAULT_IMPROVE_TIME_LIMIT = 1.0  # s of local search in the default method
+PAPER_START_LIMIT = 2000  # tiles up to which the default method also tries the paper's partition
+ROBOT_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+
+
+class Method(Enum):
+    DEFAULT = "default"
+    PAPER = "paper"
+    ROUND_ROBIN = "round-robin"
+
+
+class PlanningError(ValueError):
+    """A planning request that cannot be served; the message is one line saying why."""
+
+
+@dataclass(frozen=True)
+class RobotTask:
+    """One robot's share: its tiles in placement order and its simulated times (s)."""
+
+    robot_name: str
+    tile_ids: tuple[int, ...]
+    workload: float
+    estimated_finish: float
+    wait: float
+
+
+@dataclass(frozen=True)
+class PlanStats:
+    """How the plan was made: stage times (s), trades, and the workload imbalance (max/mean)."""
+
+    seconds: Mapping[str, float] = field(default_factory=dict)
+    trades: int = 0
+    improvement_moves: int = 0
+    helped: int = 0  # tiles a robot placed for a neighbour (default method)
+    partition: str = ""  # the starting partition: "dijkstra" (the paper's) or "layers"
+    imbalance_initial: float = 1.0
+    imbalance_traded: float = 1.0
+    imbalance_final: float = 1.0
+    policy: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A plan for a structure: every robot's task, the support relation, makespan and bound."""
+
+    structure_name: str
+    method: Method
+    tasks: tuple[RobotTask, ...]
+    supports: Mapping[int, tuple[int, ...]]
+    makespan: float
+    bound: MakespanBound
+    schedule: TeamSchedule
+    stats: PlanStats
+
+    @property
+    def lower_bound(self) -> float:
+        return self.bound.value
+
+    @property
+    def ratio(self) -> float:
+        """makespan / lower bound (1.0 when there is nothing to build)."""
+        return self.makespan / self.lower_bound if self.lower_bound > 0 else 1.0
+
+    @property
+    def imbalance(self) -> float:
+        return imbalance([t.workload for t in self.tasks])
+
+    @property
+    def total_wait(self) -> float:
+        return sum(t.wait for t in self.tasks)
+
+    def orders(self) -> dict[str, list[int]]:
+        return {t.robot_name: list(t.tile_ids) for t in self.tasks}
+
+
+def default_robot_names(count: int) -> list[str]:
+    return [f"robot{k}" for k in range(1, count + 1)]
+
+
+def check_robot_names(names: Sequence[str]) -> None:
+    """Raise PlanningError unless the names are distinct, non-empty ROS names."""
+    if not names:
+        raise PlanningError("no robots to plan for")
+    for name in names:
+        if not ROBOT_NAME.match(name):
+            raise PlanningError(f"robot name {name!r} is not a valid ROS name (letters, digits, _)")
+    if len(set(names)) != len(names):
+        raise PlanningError(f"robot names must be distinct, got {', '.join(names)}")
+
+
+def round_robin_orders(graph: AssemblyGraph, n_robots: int) -> list[list[int]]:
+    """The baseline: tiles by layer (then x, y), dealt to the robots in turn."""
+    order = np.lexsort((graph.tile_ids, graph.centroids[:, 1], graph.centroids[:, 0], graph.layer))
+    return [order[r::n_robots].tolist() for r in range(n_robots)]
+
+
+def _package(
+    structure: Structure,
+    graph: AssemblyGraph,
+    names: Sequence[str],
+    orders: list[list[int]],
+    result: SimulationResult,
+    method: Method,
+    bound: MakespanBound,
+    stats: PlanStats,
+) -> Plan:
+    if not result.completed:  # the sequencing guarantees this; a failure here is a bug
+        raise RuntimeError(f"the plan deadlocks at tiles {sorted(graph.tile_ids[list(result.blocked)])}")
+    tasks = tuple(
+        RobotTask(
+            robot_name=name,
+            tile_ids=tuple(int(graph.tile_ids[t]) for t in order),
+            workload=float(graph.cost[order].sum()) if order else 0.0,
+            estimated_finish=float(result.robot_finish[r]),
+            wait=float(result.robot_wait[r]),
+        )
+        for r, (name, order) in enumerate(zip(names, orders, strict=True))
+    )
+    return Plan(
+        structure_name=structure.name,
+        method=method,
+        tasks=tasks,
+        supports={t: tuple(structure.supports[t]) for t in structure.tiles},
+        makespan=result.makespan,
+        bound=bound,
+        schedule=team_schedule(graph, names, orders, result),
+        stats=stats,
+    )
+
+
+def plan_assembly(
+    structure: Structure,
+    robot_names: Sequence[str],
+    time_model: TimeModel,
+    method: Method = Method.DEFAULT,
+    improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT,
+    help_neighbours: bool = True,
+) -> Plan:
+    """Split `structure` among the robots and order each robot's tiles (see the module docstring).
+
+    `help_neighbours` (default method): let a robot that would wait place ready tiles of another
+    robot when that finishes the build sooner; without it every robot keeps to its own connected
+    region.
+    """
+    check_robot_names(robot_names)
+    n_robots = len(robot_names)
+    seconds: dict[str, float] = {}
+    clock = time.perf_counter()
+    graph = build_graph(structure, time_model)
+    bound = makespan_lower_bound(graph, n_robots)
+    seconds["graph"] = time.perf_counter() - clock
+
+    if len(graph) == 0:  # everything is placed already: every robot gets an empty task
+        orders = [[] for _ in robot_names]
+        seconds["total"] = time.perf_counter() - clock
+        return _package(structure, graph, robot_names, orders, simulate_orders(graph, orders), method,
+                        bound, PlanStats(seconds))
+
+    if method is Method.ROUND_ROBIN:
+        tic = time.perf_counter()
+        orders = round_robin_orders(graph, n_robots)
+        result = simulate_orders(graph, orders)
+        seconds["sequencing"] = time.perf_counter() - tic
+        seconds["total"] = time.perf_counter() - clock
+        loads = [float(graph.cost[o].sum()) for o in orders]
+        stats = PlanStats(seconds, imbalance_initial=imbalance(loads), imbalance_traded=imbalance(loads),
+                          imbalance_final=imbalance(loads), policy="layer order")
+        return _package(structure, graph, robot_names, orders, result, method, bound, stats)
+
+    tic = time.perf_counter()
+    allocation = initial_allocation(graph, n_robots)
+    seconds["allocation"] = time.perf_counter() - tic
+    if method is Method.PAPER:
+        tic = time.perf_counter()
+        traded = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
+        seconds["trading"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        owner = traded.owner
+        orders = sequence_tiles(graph, owner, n_robots, Policy.MAX_SLACK, allocation.distance).orders
+        result = simulate_orders(graph, orders)
+        seconds["sequencing"] = time.perf_counter() - tic
+        policy, moves, helped, start = Policy.MAX_SLACK.value, 0, 0, "dijkstra"
+        trading = {"dijkstra": traded}
+    else:
+        tic = time.perf_counter()
+        sliced = layer_partition(graph, n_robots)
+        trading = {"layers": trade_nodes(graph, sliced, n_robots, centroid_affinity(graph, sliced, n_robots))}
+        starts = {"layers": trading["layers"].owner, "layers-untraded": sliced}
+        if len(graph) <= PAPER_START_LIMIT:
+            trading["dijkstra"] = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
+            starts["dijkstra"] = trading["dijkstra"].owner
+        seconds["partitions"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        improved = improve_plan(
+            graph,
+            starts,
+            n_robots,
+            allocation.distance,
+            improve_time_limit,
+            good_enough=GOOD_ENOUGH * bound.strongest,
+            help_neighbours=help_neighbours,
+        )
+        owner, orders, result = improved.owner, improved.orders, improved.result
+        policy, moves, helped, start = improved.policy, improved.moves, improved.helped, improved.start
+        seconds["improvement"] = time.perf_counter() - tic
+    chosen = trading["dijkstra" if start == "dijkstra" else "layers"]
+    trades, traded_imbalance = chosen.trades, chosen.imbalance_after
+    if start == "layers-untraded":  # the layer slices did best as they were, without trading
+        trades, traded_imbalance = 0, chosen.imbalance_before
+    seconds["total"] = time.perf_counter() - clock
+    stats = PlanStats(
+        seconds=seconds,
+        trades=trades,
+        improvement_moves=moves,
+        imbalance_initial=chosen.imbalance_before,
+        imbalance_traded=traded_imbalance,
+        imbalance_final=imbalance(workloads(graph, owner, n_robots)),
+        policy=policy,
+        helped=helped,
+        partition=start,
+    )
+    return _package(structure, graph, robot_names, orders, result, method, bound, stats)
+
+
+def replan_assembly(
+    structure: Structure,
+    placed_tile_ids: Iterable[int],
+    robot_names: Sequence[str],
+    time_model: TimeModel,
+    method: Method = Method.DEFAULT,
+    improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT,
+    help_neighbours: bool = True,
+) -> Plan:
+    """Plan the tiles not yet placed for `robot_names`, starting now (times from 0).
+
+    Supports already placed are met; the plan's support relation still lists them, as in the
+    structure. Raises PlanningError for placed ids that are not tiles of the structure.
+    """
+    placed = set(int(t) for t in placed_tile_ids)
+    unknown = sorted(placed - set(structure.tiles))
+    if unknown:
+        shown = ", ".join(str(t) for t in unknown[:5]) + (" ..." if len(unknown) > 5 else "")
+        raise PlanningError(f"placed tile ids not in structure '{structure.name}': {shown}")
+    check_robot_names(robot_names)
+    remaining = structure.subset(t for t in structure.tiles if t not in placed)
+    plan = plan_assembly(remaining, robot_names, time_model, method, improve_time_limit, help_neighbours)
+    return replace(plan, supports={t: tuple(structure.supports[t]) for t in remaining.tiles})

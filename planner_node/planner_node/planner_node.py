@@ -1,0 +1,212 @@
+"""planner_node: plans the assembly (paper section 2.1) and replans it for the robots left.
+
+Publishes, latched (transient_local, reliable, depth 1, so that late joiners get them):
+  /structure  tiling_assembly_msgs/Structure     the structure S_d being built
+  /plan       tiling_assembly_msgs/AssemblyPlan  revision 0 at start, +1 on every replan
+and /diagnostics. Serves /replan (tiling_assembly_msgs/srv/Replan): the tiles already placed and
+the robots still available in, a plan for the rest out (and republished on /plan). An impossible
+request (unknown robot, no robot left, placed ids not in the structure) gets success=false with a
+one-line message; the current plan stays.
+
+Parameters (defaults in config/planner_node.yaml): structure_file, num_robots or robot_names,
+method, improve_time_limit, help_neighbours, and the time model pick_time, place_time, travel_speed and
+type_place_time.<tile type>. A bad value or structure file: one line on stderr, exit code 2.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException, ParameterUninitializedException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from planner_node.parameters import NODE_NAME, ParameterError, PlannerParameters, parameters_from_values
+from planner_node.plan_messages import plan_to_msg
+from planner_node.planner import Plan, PlanningError, plan_assembly, replan_assembly
+from tiling_assembly.messages import structure_to_msg
+from tiling_assembly.structure import StructureError
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.msg import AssemblyPlan, Structure
+from tiling_assembly_msgs.srv import Replan
+
+EXIT_BAD_INPUT = 2
+
+_DEFAULTS = PlannerParameters()
+_DESCRIPTIONS = {
+    "structure_file": "Structure YAML file to build (the contract in DESIGN.md); required",
+    "num_robots": "Number of assembly robots, named robot1..robotN, when robot_names is not set",
+    "method": "Planning method: default, paper (section 2.1 as published) or round-robin (baseline)",
+    "improve_time_limit": "Seconds of local search the default method may spend (s)",
+    "help_neighbours": "Default method: a robot that would wait may place ready tiles of another "
+    "robot (sooner finish; regions may then split). false keeps every robot to its own region",
+    "pick_time": "Time to find and grasp a tile at its parts cache (s)",
+    "place_time": "Time to lower, release and retract a tile at the structure (s)",
+    "travel_speed": "Mean speed of a robot base between a cache and the structure (m/s)",
+}
+
+
+def latched_qos() -> QoSProfile:
+    return QoSProfile(
+        depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+    )
+
+
+class PlannerNode(Node):
+    """Thin adapter: parameters and a structure file in, `plan_assembly`, messages out."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        parameters = self._declare_parameters()
+        self.structure = load_structure(parameters.structure_file)
+        self.parameters = self._declare_type_place_times(parameters)
+        self.time_model = self.parameters.time_model()
+        self.known_robots = self.parameters.robots()
+        self.structure_publisher = self.create_publisher(Structure, "/structure", latched_qos())
+        self.plan_publisher = self.create_publisher(AssemblyPlan, "/plan", latched_qos())
+        self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.revision = 0
+        self.plan = plan_assembly(
+            self.structure, self.known_robots, self.time_model, **self.parameters.planning_options()
+        )
+        structure_msg = structure_to_msg(self.structure)
+        structure_msg.header.stamp = self.get_clock().now().to_msg()
+        self.structure_publisher.publish(structure_msg)
+        self._publish_plan(self.plan)
+        self.create_service(Replan, "/replan", self._on_replan)
+
+    def _declare_parameters(self) -> PlannerParameters:
+        values = {}
+        for name, description in _DESCRIPTIONS.items():
+            default = getattr(_DEFAULTS, name)
+            values[name] = self.declare_parameter(
+                name, default, ParameterDescriptor(description=description)
+            ).value
+        self.declare_parameter(
+            "robot_names",
+            Parameter.Type.STRING_ARRAY,
+            ParameterDescriptor(description="Namespaces of the assembly robots; overrides num_robots"),
+        )
+        try:
+            values["robot_names"] = list(self.get_parameter("robot_names").value)
+        except ParameterUninitializedException:
+            pass
+        parameters, _ = parameters_from_values(values)
+        if not parameters.structure_file:
+            raise ParameterError("parameter structure_file is required (a structure YAML file)")
+        return parameters
+
+    def _declare_type_place_times(self, parameters: PlannerParameters) -> PlannerParameters:
+        """One parameter type_place_time.<type> per tile type of the structure."""
+        values = {name: getattr(parameters, name) for name in _DESCRIPTIONS}
+        values["robot_names"] = list(parameters.robot_names)
+        for type_name in self.structure.tile_types:
+            name = f"type_place_time.{type_name}"
+            values[name] = self.declare_parameter(
+                name,
+                parameters.place_time,
+                ParameterDescriptor(description=f"Place time of a '{type_name}' tile (s)"),
+            ).value
+        return parameters_from_values(values)[0]
+
+    def _publish_plan(self, plan: Plan) -> None:
+        msg = plan_to_msg(plan, self.revision, self.structure.frame_id)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.plan_publisher.publish(msg)
+        self.get_logger().info(
+            f"published plan revision {self.revision} ({plan.method.value}): "
+            f"{sum(len(t.tile_ids) for t in plan.tasks)} tiles for {len(plan.tasks)} robots, "
+            f"makespan {plan.makespan:.1f} s, lower bound {plan.lower_bound:.1f} s"
+        )
+        self._diagnose(
+            DiagnosticStatus.OK,
+            f"plan revision {self.revision}",
+            {
+                "revision": str(self.revision),
+                "method": plan.method.value,
+                "robots": ",".join(t.robot_name for t in plan.tasks),
+                "makespan": f"{plan.makespan:.3f}",
+                "lower_bound": f"{plan.lower_bound:.3f}",
+            },
+        )
+
+    def _diagnose(self, level: bytes, message: str, values: dict[str, str]) -> None:
+        array = DiagnosticArray()
+        array.header.stamp = self.get_clock().now().to_msg()
+        array.status = [
+            DiagnosticStatus(
+                level=level,
+                name=f"{NODE_NAME}: plan",
+                message=message,
+                hardware_id=self.structure.name,
+                values=[KeyValue(key=k, value=v) for k, v in values.items()],
+            )
+        ]
+        self.diagnostics_publisher.publish(array)
+
+    def _on_replan(self, request: Replan.Request, response: Replan.Response) -> Replan.Response:
+        robots = list(request.available_robots) or [t.robot_name for t in self.plan.tasks]
+        try:
+            unknown = [r for r in robots if r not in self.known_robots]
+            if unknown:
+                raise PlanningError(
+                    f"unknown robot {unknown[0]!r} (known: {', '.join(self.known_robots)})"
+                )
+            if not robots:
+                raise PlanningError("no robots left to plan for")
+            plan = replan_assembly(
+                self.structure,
+                [int(t) for t in request.placed_tile_ids],
+                list(dict.fromkeys(robots)),
+                self.time_model,
+                **self.parameters.planning_options(),
+            )
+        except PlanningError as error:
+            return self._refuse(response, str(error))
+        except Exception as error:
+            return self._refuse(response, f"internal error while replanning: {error}")
+        self.revision += 1
+        self.plan = plan
+        self._publish_plan(plan)
+        response.success = True
+        response.message = ""
+        response.plan = plan_to_msg(plan, self.revision, self.structure.frame_id)
+        response.plan.header.stamp = self.get_clock().now().to_msg()
+        return response
+
+    def _refuse(self, response: Replan.Response, reason: str) -> Replan.Response:
+        self.get_logger().warning(f"replan refused: {reason}")
+        self._diagnose(DiagnosticStatus.WARN, f"replan refused: {reason}", {"revision": str(self.revision)})
+        response.success = False
+        response.message = reason
+        return response
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = PlannerNode()
+    except (StructureError, ParameterError, PlanningError, ParameterException) as error:
+        print(f"error: {error}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return EXIT_BAD_INPUT
+    except (KeyboardInterrupt, ExternalShutdownException):
+        rclpy.try_shutdown()
+        return 0
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

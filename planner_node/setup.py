@@ -1,0 +1,26 @@
+from setuptools import find_packages, setup
+
+package_name = "planner_node"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="Tiling Assembly Engineering",
+    maintainer_email="engineering@tiling-assembly.example.com",
+    description="Task partitioning and sequencing for the assembly robots (paper section 2.1).",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "plan = planner_node.plan_command:main",
+            "planner_node = planner_node.planner_node:main",
+            "benchmark = planner_node.benchmark:main",
+        ],
+    },
+)
