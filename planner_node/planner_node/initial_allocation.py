@@ -13,7 +13,7 @@ One Dijkstra from all seeds at once (scipy.sparse.csgraph) then gives every tile
 seed is nearest through the contact graph; every region is a shortest-path tree, hence connected.
 
 A structure in several separate pieces gets seeds per piece in proportion to the piece's work;
-with more pieces than robots, whole pieces are dealt to the least loaded robot first.
+pieces too light for a robot of their own are dealt whole to the least loaded robot.
 """
 
 from __future__ import annotations
@@ -144,10 +144,13 @@ def exterior_seeds(graph: AssemblyGraph, tiles: IntArray, count: int) -> list[in
 
 
 def _robots_per_piece(work: FloatArray, sizes: IntArray, n_robots: int) -> IntArray:
-    """Robots per piece: at least one each, the rest to the piece with the most work per robot."""
-    count = np.ones(len(work), dtype=np.int64)
-    for _ in range(n_robots - len(work)):
-        per_robot = np.where(count < sizes, work / count, -np.inf)
+    """Robots per piece, one at a time to the piece with the most work per robot (D'Hondt).
+
+    Light pieces may get none: they are dealt whole afterwards.
+    """
+    count = np.zeros(len(work), dtype=np.int64)
+    for _ in range(n_robots):
+        per_robot = np.where(count < sizes, work / (count + 1), -np.inf)
         k = int(np.argmax(per_robot))
         if per_robot[k] == -np.inf:
             break
@@ -158,9 +161,9 @@ def _robots_per_piece(work: FloatArray, sizes: IntArray, n_robots: int) -> IntAr
 def split_among_pieces(graph: AssemblyGraph, n_robots: int) -> list[tuple[IntArray, list[int]]]:
     """The structure's separate pieces (left to right) with the robots each one gets.
 
-    With no more pieces than robots, every piece gets robots in proportion to its work and robots
-    are numbered piece by piece. With more pieces than robots, whole pieces are dealt, heaviest
-    first, to the least loaded robot (each piece then has one robot).
+    Robots go to pieces in proportion to their work and are numbered piece by piece, left to
+    right. Pieces too light to get a robot of their own are dealt whole, heaviest first, to the
+    robot with the least work so far (that robot then works on two pieces).
     """
     labels = graph.component
     work = np.bincount(labels, weights=graph.cost, minlength=graph.n_components)
@@ -169,20 +172,22 @@ def split_among_pieces(graph: AssemblyGraph, n_robots: int) -> list[tuple[IntArr
     np.minimum.at(left, labels, graph.centroids[:, 0])
     pieces = np.argsort(left, kind="stable")
     members = {int(c): np.flatnonzero(labels == c) for c in pieces}
-    if graph.n_components <= n_robots:
-        counts = _robots_per_piece(work[pieces], sizes[pieces], n_robots)
-        split, first = [], 0
-        for c, k in zip(pieces, counts, strict=True):
-            split.append((members[int(c)], list(range(first, first + int(k)))))
-            first += int(k)
-        return split
+    counts = _robots_per_piece(work[pieces], sizes[pieces], n_robots)
+    split: list[tuple[IntArray, list[int]]] = []
     load = np.zeros(n_robots)
-    dealt = []
-    for c in sorted(pieces.tolist(), key=lambda c: (-work[c], left[c])):
+    first = 0
+    for c, k in zip(pieces.tolist(), counts.tolist(), strict=True):
+        if k:
+            robots = list(range(first, first + k))
+            split.append((members[c], robots))
+            load[robots] += work[c] / k
+            first += k
+    unserved = [c for c, k in zip(pieces.tolist(), counts.tolist(), strict=True) if not k]
+    for c in sorted(unserved, key=lambda c: (-work[c], left[c])):
         r = int(np.argmin(load))
         load[r] += work[c]
-        dealt.append((members[c], [r]))
-    return dealt
+        split.append((members[c], [r]))
+    return split
 
 
 def initial_allocation(graph: AssemblyGraph, n_robots: int) -> InitialAllocation:

@@ -9,9 +9,9 @@ worse), and trading ends. It stops when no border tile can move that way.
 
 Constraints of every trade:
 * the giving region stays connected (the receiving one is, since the tile touches it): the tile's
-  neighbours in its region must still reach each other without it. This is checked locally with a
-  small breadth-first search around the tile, and over the whole region only when that is not
-  conclusive;
+  neighbours in its region must still reach each other without it. Searches started from each of
+  them at once decide this locally, in time proportional to the smaller side; a search that runs
+  past a budget refuses the trade (never a wrong "yes");
 * no region is emptied;
 * no precedence deadlock: a partition alone cannot deadlock (any partition can be executed in one
   team-wide order of the precedence DAG); deadlocks come from contradictory per-robot orders, and
@@ -35,6 +35,7 @@ IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 
 TRADE_MARGIN = 1e-6  # s
+SEARCH_BUDGET = 64  # tile expansions a connectivity check may spend before refusing the trade
 
 
 
@@ -110,11 +111,25 @@ class RegionBorders:
         inside = [u for u in self.neighbors[tile] if owner[u] == region]
         if len(inside) <= 1:
             return True
+        neighbors = self.neighbors
+        # the common case: the neighbours still meet within two steps of the tile
+        near = set(inside)
+        for u in inside:
+            near.update(v for v in neighbors[u] if owner[v] == region)
+        near.discard(tile)
+        reached = {inside[0]}
+        stack = [inside[0]]
+        while stack:
+            for v in neighbors[stack.pop()]:
+                if v in near and v not in reached:
+                    reached.add(v)
+                    stack.append(v)
+        if reached.issuperset(inside):
+            return True
         # One breadth-first search from each neighbour, advanced in turns: they stop as soon as
         # they have all met (still connected), or as soon as one of them runs out of tiles before
         # meeting the others (that part would be cut off). Either way the work is about the size
-        # of the smaller side, not of the whole region.
-        neighbors = self.neighbors
+        # of the smaller side, not of the whole region; past a budget the answer is "no".
         search_of = {tile: -1}
         parent = list(range(len(inside)))
 
@@ -129,7 +144,11 @@ class RegionBorders:
             search_of[u] = k
             queues.append(deque([u]))
         groups = len(inside)
+        budget = SEARCH_BUDGET
         while True:
+            budget -= len(queues)
+            if budget < 0:
+                return False  # undecided after a long search: refuse, so that no region ever splits
             for k, queue in enumerate(queues):
                 if root(k) != k and not queue:
                     continue

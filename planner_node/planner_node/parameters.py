@@ -40,6 +40,7 @@ class PlannerParameters:
     robot_names: tuple[str, ...] = ()
     method: str = Method.DEFAULT.value
     improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT
+    help_neighbours: bool = True
     pick_time: float = _DEFAULT_TIMES.pick_time
     place_time: float = _DEFAULT_TIMES.place_time
     travel_speed: float = _DEFAULT_TIMES.travel_speed
@@ -51,6 +52,14 @@ class PlannerParameters:
 
     def planning_method(self) -> Method:
         return Method(self.method)
+
+    def planning_options(self) -> dict[str, Any]:
+        """Keyword arguments of `plan_assembly` / `replan_assembly` besides the time model."""
+        return {
+            "method": self.planning_method(),
+            "improve_time_limit": self.improve_time_limit,
+            "help_neighbours": self.help_neighbours,
+        }
 
     def time_model(self) -> TimeModel:
         return TimeModel(
@@ -86,6 +95,7 @@ _FIELDS = {
     "robot_names": list,
     "method": str,
     "improve_time_limit": float,
+    "help_neighbours": bool,
     "pick_time": float,
     "place_time": float,
     "travel_speed": float,
@@ -108,11 +118,19 @@ def _convert(name: str, value: Any, kind: type) -> Any:
         return float(value)
     if kind is int and isinstance(value, int) and not isinstance(value, bool):
         return value
+    if kind is bool and isinstance(value, bool):
+        return value
     if kind is str and isinstance(value, str):
         return value
     if kind is list and isinstance(value, list) and all(isinstance(v, str) for v in value):
         return tuple(value)
-    wanted = {float: "a number", int: "a whole number", str: "a string", list: "a list of strings"}[kind]
+    wanted = {
+        float: "a number",
+        int: "a whole number",
+        bool: "true or false",
+        str: "a string",
+        list: "a list of strings",
+    }[kind]
     raise ParameterError(f"{name} must be {wanted}, got {value!r}")
 
 
@@ -140,7 +158,8 @@ def read_parameter_file(path: str | Path) -> tuple[PlannerParameters, list[str]]
     except OSError as error:
         raise ParameterError(f"{path}: cannot read the file: {error.strerror or error}") from None
     except (yaml.YAMLError, UnicodeDecodeError) as error:
-        raise ParameterError(f"{path}: not a valid YAML parameter file ({str(error).splitlines()[0]})") from None
+        first_line = str(error).splitlines()[0]
+        raise ParameterError(f"{path}: not a valid YAML parameter file ({first_line})") from None
     if not isinstance(document, Mapping):
         raise ParameterError(f"{path}: a parameter file maps node names to 'ros__parameters'")
     values: dict[str, Any] = {}

@@ -56,14 +56,15 @@ def run(args: argparse.Namespace) -> int:
             print(f"warning: {args.params}: unknown parameter '{name}' ignored", file=sys.stderr)
     if parameters.robot_names and len(parameters.robot_names) != args.robots:
         raise ParameterError(
-            f"{args.params}: robot_names lists {len(parameters.robot_names)} robots but --robots is {args.robots}"
+            f"{args.params}: robot_names lists {len(parameters.robot_names)} robots "
+            f"but --robots is {args.robots}"
         )
     names = list(parameters.robot_names) or default_robot_names(args.robots)
-    method = Method(args.method) if args.method else parameters.planning_method()
+    options = parameters.planning_options()
+    if args.method:
+        options["method"] = Method(args.method)
     structure = load_structure(args.structure)
-    plan = plan_assembly(
-        structure, names, parameters.time_model(), method, parameters.improve_time_limit
-    )
+    plan = plan_assembly(structure, names, parameters.time_model(), **options)
     if args.format == "table":
         print(plan_table(plan, structure))
     else:

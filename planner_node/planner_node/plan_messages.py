@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from tiling_assembly_msgs.msg import AssemblyPlan, AssemblyTask, SupportRelation
-
 from planner_node.planner import Plan
+from tiling_assembly_msgs.msg import AssemblyPlan, AssemblyTask, SupportRelation
 
 
 def plan_to_msg(plan: Plan, revision: int, frame_id: str = "map") -> AssemblyPlan:

@@ -5,8 +5,10 @@ Methods:
 * `paper`: the method of section 2.1 (after its reference [11]): multi-source Dijkstra from
   exterior seeds (`initial_allocation`), node trading (`node_trading`), and orders that maximise
   the time between a support's placement and the placement of the tile it carries (`sequencing`).
-* `default`: the paper's partition and trading, then local search over trades and orders with the
-  team simulation as the objective (`schedule_improvement`), for a makespan near the lower bound.
+* `default`: layer-balanced regions (`layer_partition`) as well as the paper's, traded, then
+  list scheduling with critical-path priority in which a robot that would wait may help another,
+  and local search over trades and orders with the team simulation as the objective
+  (`schedule_improvement`), for a makespan near the lower bound.
 * `round-robin`: what a user might write instead: tiles layer by layer, dealt to the robots in
   turn, each robot placing its tiles in that order. For comparison only.
 
@@ -36,6 +38,7 @@ from tiling_assembly.structure import Structure
 from tiling_assembly.time_model import TimeModel
 
 DEFAULT_IMPROVE_TIME_LIMIT = 1.0  # s of local search in the default method
+PAPER_START_LIMIT = 2000  # tiles up to which the default method also tries the paper's partition
 ROBOT_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 
@@ -170,8 +173,14 @@ def plan_assembly(
     time_model: TimeModel,
     method: Method = Method.DEFAULT,
     improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT,
+    help_neighbours: bool = True,
 ) -> Plan:
-    """Split `structure` among the robots and order each robot's tiles (see the module docstring)."""
+    """Split `structure` among the robots and order each robot's tiles (see the module docstring).
+
+    `help_neighbours` (default method): let a robot that would wait place ready tiles of another
+    robot when that finishes the build sooner; without it every robot keeps to its own connected
+    region.
+    """
     check_robot_names(robot_names)
     n_robots = len(robot_names)
     seconds: dict[str, float] = {}
@@ -200,45 +209,49 @@ def plan_assembly(
     tic = time.perf_counter()
     allocation = initial_allocation(graph, n_robots)
     seconds["allocation"] = time.perf_counter() - tic
-    tic = time.perf_counter()
-    traded = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
-    seconds["trading"] = time.perf_counter() - tic
-    initial_imbalance = imbalance(workloads(graph, allocation.owner, n_robots))
-
-    tic = time.perf_counter()
     if method is Method.PAPER:
+        tic = time.perf_counter()
+        traded = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
+        seconds["trading"] = time.perf_counter() - tic
+        tic = time.perf_counter()
         owner = traded.owner
         orders = sequence_tiles(graph, owner, n_robots, Policy.MAX_SLACK, allocation.distance).orders
         result = simulate_orders(graph, orders)
-        policy, moves, helped, start = Policy.MAX_SLACK.value, 0, 0, "dijkstra"
-        trades, traded_imbalance = traded.trades, traded.imbalance_after
         seconds["sequencing"] = time.perf_counter() - tic
+        policy, moves, helped, start = Policy.MAX_SLACK.value, 0, 0, "dijkstra"
+        trading = {"dijkstra": traded}
     else:
+        tic = time.perf_counter()
         sliced = layer_partition(graph, n_robots)
-        layered = trade_nodes(graph, sliced, n_robots, centroid_affinity(graph, sliced, n_robots))
-        seconds["layers"] = time.perf_counter() - tic
+        trading = {"layers": trade_nodes(graph, sliced, n_robots, centroid_affinity(graph, sliced, n_robots))}
+        starts = {"layers": trading["layers"].owner, "layers-untraded": sliced}
+        if len(graph) <= PAPER_START_LIMIT:
+            trading["dijkstra"] = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
+            starts["dijkstra"] = trading["dijkstra"].owner
+        seconds["partitions"] = time.perf_counter() - tic
         tic = time.perf_counter()
         improved = improve_plan(
             graph,
-            {"layers": layered.owner, "layers-untraded": sliced, "dijkstra": traded.owner},
+            starts,
             n_robots,
             allocation.distance,
             improve_time_limit,
             good_enough=GOOD_ENOUGH * bound.strongest,
+            help_neighbours=help_neighbours,
         )
         owner, orders, result = improved.owner, improved.orders, improved.result
         policy, moves, helped, start = improved.policy, improved.moves, improved.helped, improved.start
-        chosen = traded if start == "dijkstra" else layered
-        trades, traded_imbalance = chosen.trades, chosen.imbalance_after
-        if start != "dijkstra":
-            initial_imbalance = chosen.imbalance_before
         seconds["improvement"] = time.perf_counter() - tic
+    chosen = trading["dijkstra" if start == "dijkstra" else "layers"]
+    trades, traded_imbalance = chosen.trades, chosen.imbalance_after
+    if start == "layers-untraded":  # the layer slices did best as they were, without trading
+        trades, traded_imbalance = 0, chosen.imbalance_before
     seconds["total"] = time.perf_counter() - clock
     stats = PlanStats(
         seconds=seconds,
         trades=trades,
         improvement_moves=moves,
-        imbalance_initial=initial_imbalance,
+        imbalance_initial=chosen.imbalance_before,
         imbalance_traded=traded_imbalance,
         imbalance_final=imbalance(workloads(graph, owner, n_robots)),
         policy=policy,
@@ -255,6 +268,7 @@ def replan_assembly(
     time_model: TimeModel,
     method: Method = Method.DEFAULT,
     improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT,
+    help_neighbours: bool = True,
 ) -> Plan:
     """Plan the tiles not yet placed for `robot_names`, starting now (times from 0).
 
@@ -268,5 +282,5 @@ def replan_assembly(
         raise PlanningError(f"placed tile ids not in structure '{structure.name}': {shown}")
     check_robot_names(robot_names)
     remaining = structure.subset(t for t in structure.tiles if t not in placed)
-    plan = plan_assembly(remaining, robot_names, time_model, method, improve_time_limit)
+    plan = plan_assembly(remaining, robot_names, time_model, method, improve_time_limit, help_neighbours)
     return replace(plan, supports={t: tuple(structure.supports[t]) for t in remaining.tiles})

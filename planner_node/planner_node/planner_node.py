@@ -9,7 +9,7 @@ request (unknown robot, no robot left, placed ids not in the structure) gets suc
 one-line message; the current plan stays.
 
 Parameters (defaults in config/planner_node.yaml): structure_file, num_robots or robot_names,
-method, improve_time_limit, and the time model pick_time, place_time, travel_speed and
+method, improve_time_limit, help_neighbours, and the time model pick_time, place_time, travel_speed and
 type_place_time.<tile type>. A bad value or structure file: one line on stderr, exit code 2.
 """
 
@@ -25,8 +25,6 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from tiling_assembly_msgs.msg import AssemblyPlan, Structure
-from tiling_assembly_msgs.srv import Replan
 
 from planner_node.parameters import NODE_NAME, ParameterError, PlannerParameters, parameters_from_values
 from planner_node.plan_messages import plan_to_msg
@@ -34,6 +32,8 @@ from planner_node.planner import Plan, PlanningError, plan_assembly, replan_asse
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.msg import AssemblyPlan, Structure
+from tiling_assembly_msgs.srv import Replan
 
 EXIT_BAD_INPUT = 2
 
@@ -43,6 +43,8 @@ _DESCRIPTIONS = {
     "num_robots": "Number of assembly robots, named robot1..robotN, when robot_names is not set",
     "method": "Planning method: default, paper (section 2.1 as published) or round-robin (baseline)",
     "improve_time_limit": "Seconds of local search the default method may spend (s)",
+    "help_neighbours": "Default method: a robot that would wait may place ready tiles of another "
+    "robot (sooner finish; regions may then split). false keeps every robot to its own region",
     "pick_time": "Time to find and grasp a tile at its parts cache (s)",
     "place_time": "Time to lower, release and retract a tile at the structure (s)",
     "travel_speed": "Mean speed of a robot base between a cache and the structure (m/s)",
@@ -64,14 +66,13 @@ class PlannerNode(Node):
         self.structure = load_structure(parameters.structure_file)
         self.parameters = self._declare_type_place_times(parameters)
         self.time_model = self.parameters.time_model()
-        self.method = self.parameters.planning_method()
         self.known_robots = self.parameters.robots()
         self.structure_publisher = self.create_publisher(Structure, "/structure", latched_qos())
         self.plan_publisher = self.create_publisher(AssemblyPlan, "/plan", latched_qos())
         self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.revision = 0
         self.plan = plan_assembly(
-            self.structure, self.known_robots, self.time_model, self.method, self.parameters.improve_time_limit
+            self.structure, self.known_robots, self.time_model, **self.parameters.planning_options()
         )
         structure_msg = structure_to_msg(self.structure)
         structure_msg.header.stamp = self.get_clock().now().to_msg()
@@ -163,12 +164,11 @@ class PlannerNode(Node):
                 [int(t) for t in request.placed_tile_ids],
                 list(dict.fromkeys(robots)),
                 self.time_model,
-                self.method,
-                self.parameters.improve_time_limit,
+                **self.parameters.planning_options(),
             )
         except PlanningError as error:
             return self._refuse(response, str(error))
-        except Exception as error:  # noqa: BLE001 - a service must answer, never take the node down
+        except Exception as error:
             return self._refuse(response, f"internal error while replanning: {error}")
         self.revision += 1
         self.plan = plan

@@ -7,8 +7,9 @@ simulation (`schedule_sim`) as the objective (makespan, then total waiting):
 
 1. every candidate partition (the paper's traded Dijkstra regions, the layer-balanced ones of
    `layer_partition`) is sequenced with every policy of `sequencing` (the paper's maximum slack,
-   critical-path list scheduling, and the same with robots helping their neighbours); the plan that
-   finishes first is the start;
+   critical-path list scheduling, and the same with robots helping others when the helped robot
+   would finish later, or whenever the helper would wait); the plan that finishes first is the
+   start, the most local one among equals;
 2. local search, while the plan is more than `GOOD_ENOUGH` above the lower bound and time is left:
    take the robot that finishes last and try, one at a time, (a) handing one of its border tiles to
    a touching robot that finishes earlier and (b) handing a tile it waits for to the robot whose
@@ -38,12 +39,16 @@ IMPROVEMENT_EPSILON = 1e-6  # s
 GOOD_ENOUGH = 1.005  # makespan / strongest lower bound at which the search stops
 MOVES_PER_ROUND = 24  # candidate moves tried for the last robot before giving up
 
+HELP_FREELY = 10.0  # help margin (in tile costs) of the free-helping policy
+
+# (name, policy, help margin): the first of equally good plans wins, so the more local go first
 ALL_POLICIES = (
-    ("critical-path", Policy.CRITICAL_PATH, False),
-    ("max-slack", Policy.MAX_SLACK, False),
-    ("critical-path+help", Policy.CRITICAL_PATH, True),
+    ("critical-path", Policy.CRITICAL_PATH, None),
+    ("max-slack", Policy.MAX_SLACK, None),
+    ("critical-path+help", Policy.CRITICAL_PATH, 0.0),
+    ("critical-path+help-freely", Policy.CRITICAL_PATH, HELP_FREELY),
 )
-SEARCH_POLICIES = (ALL_POLICIES[0], ALL_POLICIES[2])
+SEARCH_POLICIES = (ALL_POLICIES[0], ALL_POLICIES[2], ALL_POLICIES[3])
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,7 +66,8 @@ class ImprovedPlan:
 def _better(a: SimulationResult, b: SimulationResult) -> bool:
     if a.makespan < b.makespan - IMPROVEMENT_EPSILON:
         return True
-    return a.makespan <= b.makespan + IMPROVEMENT_EPSILON and a.total_wait < b.total_wait - IMPROVEMENT_EPSILON
+    same = a.makespan <= b.makespan + IMPROVEMENT_EPSILON
+    return same and a.total_wait < b.total_wait - IMPROVEMENT_EPSILON
 
 
 def best_sequencing(
@@ -73,8 +79,8 @@ def best_sequencing(
 ) -> tuple[Sequencing, SimulationResult, str]:
     """Orders by every policy, simulated; the ones that finish first (then wait least)."""
     best = None
-    for name, policy, helping in policies:
-        sequencing = sequence_tiles(graph, owner, n_robots, policy, distance, helping)
+    for name, policy, margin in policies:
+        sequencing = sequence_tiles(graph, owner, n_robots, policy, distance, margin)
         result = simulate_orders(graph, sequencing.orders)
         if best is None or _better(result, best[1]):
             best = (sequencing, result, name)
@@ -121,20 +127,25 @@ def improve_plan(
     distance: FloatArray,
     time_limit: float,
     good_enough: float = 0.0,
+    help_neighbours: bool = True,
 ) -> ImprovedPlan:
     """Best start among `partitions`, then local search (see the module docstring).
 
     `good_enough` (s): a makespan at which to stop searching (e.g. just above the lower bound).
+    Without `help_neighbours` only policies that keep every robot to its region are used, so the
+    regions stay connected.
     """
+    start_policies = ALL_POLICIES if help_neighbours else ALL_POLICIES[:2]
+    search_policies = SEARCH_POLICIES if help_neighbours else SEARCH_POLICIES[:1]
     deadline = time.perf_counter() + time_limit
     best = None
     for name, candidate in partitions.items():
-        sequencing, result, policy = best_sequencing(graph, candidate, n_robots, distance)
+        sequencing, result, policy = best_sequencing(graph, candidate, n_robots, distance, start_policies)
         if best is None or _better(result, best[1]):
             best = (sequencing, result, policy, name, candidate)
     assert best is not None
     sequencing, result, policy, start, partition = best
-    evaluations = len(ALL_POLICIES) * len(partitions)
+    evaluations = len(start_policies) * len(partitions)
     moves = 0
     regions = RegionBorders(graph, partition, n_robots)
     while result.makespan > good_enough and time.perf_counter() < deadline:
@@ -150,8 +161,8 @@ def improve_plan(
             tried.add((tile, taker))
             regions.move(tile, taker)
             trial_owner = np.array(regions.owner, dtype=np.int64)
-            trial = best_sequencing(graph, trial_owner, n_robots, distance, SEARCH_POLICIES)
-            evaluations += len(SEARCH_POLICIES)
+            trial = best_sequencing(graph, trial_owner, n_robots, distance, search_policies)
+            evaluations += len(search_policies)
             if _better(trial[1], result):
                 sequencing, result, policy = trial
                 moves += 1

@@ -23,10 +23,11 @@ The choice rule is the policy:
   under the time model), as in list scheduling with critical-path priority; when every candidate
   would wait, the one that waits least.
 
-With `help_neighbours` (critical path only), a robot that would otherwise wait takes the most
-urgent tile another robot could place right now, when that robot is projected to finish later even
-after giving the tile away; robots next to it are asked first. The partition then changes: the
-returned owners say who places what.
+With `help_margin` (critical path only), a robot that would otherwise wait takes the most urgent
+tile another robot could place right now, robots next to it first, when that robot is projected to
+finish later than the helper even after giving the tile away, give or take `help_margin` times
+the tile's cost (0: strictly later; a large margin: help whenever there is something to do). The
+partition then changes: the returned owners say who places what.
 """
 
 from __future__ import annotations
@@ -83,7 +84,7 @@ def sequence_tiles(
     n_robots: int,
     policy: Policy,
     distance: FloatArray | None = None,
-    help_neighbours: bool = False,
+    help_margin: float | None = None,
 ) -> Sequencing:
     """Every robot's tiles (graph indices) in placement order; see the module docstring."""
     n = len(graph)
@@ -97,7 +98,8 @@ def sequence_tiles(
     supports = graph.support_lists
     dependents = graph.dependent_lists
     critical = policy is Policy.CRITICAL_PATH
-    helping = help_neighbours and critical
+    helping = help_margin is not None and critical
+    margin = help_margin if help_margin is not None else 0.0
     level = bottom_levels(graph) if critical else []
     outside = [] if critical else [
         sum(1 for d in dependents[t] if owner_list[d] != owner_list[t]) for t in range(n)
@@ -154,7 +156,7 @@ def sequence_tiles(
                 if t is None:
                     continue
                 theirs = max(free[v], now) + remaining[v]
-                if mine + cost[t] > theirs - cost[t]:
+                if mine + cost[t] > theirs - cost[t] + margin * cost[t]:
                     continue
                 if best is None or level[t] > level[best]:
                     best = t

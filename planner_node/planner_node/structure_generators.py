@@ -103,7 +103,7 @@ def random_cluster(n: int, seed: int = 0) -> Document:
     """Random mounds of stacked cubes (possibly separate), some capped by planks across two columns."""
     rng = np.random.default_rng(seed)
     clusters = max(1, n // 150)
-    side = max(4, int(math.ceil(math.sqrt(n / 2.5))))
+    side = max(4, math.ceil(math.sqrt(n / 2.5)))
     heights = np.zeros((side, side), dtype=int)
     cells = np.stack(np.meshgrid(np.arange(side), np.arange(side), indexing="ij"), axis=-1)
     while heights.sum() < 0.85 * n:

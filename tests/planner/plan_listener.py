@@ -12,6 +12,7 @@ import sys
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
 from tiling_assembly_msgs.msg import AssemblyPlan, Structure
 
 

@@ -9,6 +9,7 @@ import sys
 
 import rclpy
 from rclpy.node import Node
+
 from tiling_assembly_msgs.srv import Replan
 
 

@@ -11,6 +11,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 from conftest import DATA, REPO, STRUCTURES
@@ -37,8 +38,8 @@ def helper(module: str, *args: str) -> dict:
 class NodeProcess:
     """planner_node started with `ros2 run`, its log lines collected as they come."""
 
-    def __init__(self, *parameters: str) -> None:
-        args = ["ros2", "run", "planner_node", "planner_node", "--ros-args"]
+    def __init__(self, *parameters: str, ros_args: tuple[str, ...] = ()) -> None:
+        args = ["ros2", "run", "planner_node", "planner_node", "--ros-args", *ros_args]
         for p in parameters:
             args += ["-p", p]
         self.process = subprocess.Popen(
@@ -76,35 +77,42 @@ class NodeProcess:
             self.process.wait()
 
 
-def test_late_subscriber_gets_the_plan_and_replan_serves_the_rest() -> None:
+def test_late_subscriber_gets_the_plan_and_replan_serves_the_rest(tmp_path: Path) -> None:
     structure = load_structure(PAPER)
-    node = NodeProcess(f"structure_file:={PAPER}", "num_robots:=2", "improve_time_limit:=0.2")
+    team = tmp_path / "team.yaml"
+    team.write_text("/**:\n  ros__parameters:\n    robot_names: [alpha, beta]\n    improve_time_limit: 0.2\n")
+    # the shipped parameter file, then the lab's own; in a namespace, to show the wildcard works
+    node = NodeProcess(
+        f"structure_file:={PAPER}",
+        ros_args=("-r", "__ns:=/lab", "--params-file", str(REPO / "config" / "planner_node.yaml"),
+                  "--params-file", str(team)),
+    )
     try:
         node.wait_for("published plan revision 0")
         first = helper("plan_listener", "--timeout", "30")  # joins after the plan was published
         plan = first["plan"]
         assert first["structure"] == {"name": "paper_14", "tiles": sorted(structure.tiles)}
         assert plan["revision"] == 0 and plan["method"] == "default" and plan["stamp_sec"] > 0
-        assert [t["robot"] for t in plan["tasks"]] == ["robot1", "robot2"]
+        assert [t["robot"] for t in plan["tasks"]] == ["alpha", "beta"]
         orders = {t["robot"]: t["tiles"] for t in plan["tasks"]}
         assert plan_problems(structure, orders, TimeModel()) == []
         assert plan["makespan"] >= plan["lower_bound"] > 0
         assert {int(k): tuple(v) for k, v in plan["supports"].items()} == dict(structure.supports)
 
-        # robot2 died after the base was laid: robot1 gets everything that is left
+        # beta died after the base was laid: alpha gets everything that is left
         placed = [1, 2, 3, 6, 7]
-        reply = helper("replan_client", "--placed", ",".join(map(str, placed)), "--robots", "robot1")
+        reply = helper("replan_client", "--placed", ",".join(map(str, placed)), "--robots", "alpha")
         assert reply["success"] and reply["message"] == ""
         assert reply["revision"] == 1
-        assert [t["robot"] for t in reply["tasks"]] == ["robot1"]
+        assert [t["robot"] for t in reply["tasks"]] == ["alpha"]
         rest = structure.subset(t for t in structure.tiles if t not in placed)
         assert sorted(reply["tasks"][0]["tiles"]) == sorted(rest.tiles)
-        assert plan_problems(rest, {"robot1": reply["tasks"][0]["tiles"]}, TimeModel()) == []
+        assert plan_problems(rest, {"alpha": reply["tasks"][0]["tiles"]}, TimeModel()) == []
         assert reply["makespan"] == pytest.approx(TimeModel().workload(structure, rest.tiles))
 
         for args, why in (
             (["--placed", "1,99"], "99"),
-            (["--robots", "robot1,robot9"], "unknown robot 'robot9'"),
+            (["--robots", "alpha,robot9"], "unknown robot 'robot9'"),
         ):
             refused = helper("replan_client", *args)
             assert not refused["success"] and why in refused["message"]

@@ -23,12 +23,26 @@ TIME_MODEL = TimeModel()
 SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
+def separate_piles(sizes: list[int], seed: int) -> dict:
+    """Random piles side by side with gaps between them: a structure in several pieces."""
+    document = random_cluster(sizes[0], seed=seed)
+    tiles = list(document["tiles"])
+    for k, size in enumerate(sizes[1:], start=1):
+        for tile in random_cluster(size, seed=seed + k)["tiles"]:
+            x, y, z = tile["position"]
+            tiles.append({**tile, "id": len(tiles) + 1, "position": [x + 1.0 * k, y, z]})
+    return {**document, "tiles": tiles}
+
+
 @st.composite
 def structures(draw: st.DrawFn) -> Structure:
-    kind = draw(st.sampled_from(["cluster", "cluster", "wall", "pyramid", "bridge"]))
+    kind = draw(st.sampled_from(["cluster", "cluster", "piles", "wall", "pyramid", "bridge"]))
     size = draw(st.integers(min_value=4, max_value=60))
     if kind == "cluster":
         document = random_cluster(size, seed=draw(st.integers(0, 10_000)))
+    elif kind == "piles":
+        sizes = draw(st.lists(st.integers(2, 25), min_size=2, max_size=4))
+        document = separate_piles(sizes, draw(st.integers(0, 10_000)))
     else:
         document = {"wall": wall, "pyramid": pyramid, "bridge": bridge}[kind](size)
     return parse_structure(document, f"{kind}-{size}")
@@ -41,7 +55,8 @@ def _index_sets(graph, owner: np.ndarray, n_robots: int) -> list[list[int]]:
 @SETTINGS
 @given(structure=structures(), n_robots=st.integers(1, 7), method=st.sampled_from(list(Method)))
 def test_every_plan_is_valid(structure: Structure, n_robots: int, method: Method) -> None:
-    plan = plan_assembly(structure, default_robot_names(n_robots), TIME_MODEL, method, improve_time_limit=0.05)
+    robots = default_robot_names(n_robots)
+    plan = plan_assembly(structure, robots, TIME_MODEL, method, improve_time_limit=0.05)
     assert plan_problems(structure, plan.orders(), TIME_MODEL) == []
     assert plan.schedule.completed
     assert plan.makespan >= plan.lower_bound - 1e-6
@@ -50,6 +65,19 @@ def test_every_plan_is_valid(structure: Structure, n_robots: int, method: Method
         assert task.workload == pytest.approx(TIME_MODEL.workload(structure, task.tile_ids))
         assert timeline.finish == pytest.approx(task.workload + task.wait)
     assert plan.makespan == pytest.approx(max(t.estimated_finish for t in plan.tasks))
+
+
+@SETTINGS
+@given(structure=structures(), n_robots=st.integers(1, 7))
+def test_default_method_without_helping_keeps_every_region_connected(
+    structure: Structure, n_robots: int
+) -> None:
+    robots = default_robot_names(n_robots)
+    plan = plan_assembly(structure, robots, TIME_MODEL, improve_time_limit=0.05, help_neighbours=False)
+    assert plan_problems(structure, plan.orders(), TIME_MODEL) == []
+    assert plan.stats.helped == 0
+    for task in plan.tasks:
+        assert region_is_connected(structure, task.tile_ids)
 
 
 @SETTINGS

@@ -75,8 +75,10 @@ def _convex_separation(va: Array, axes_a: PieceAxes, vb: Array, axes_b: PieceAxe
 
 
 def _fills_its_box(tile: PlacedTile) -> bool:
+    """Whether the tile is an axis-aligned box, so that its bounding box is exact."""
     lo, hi = tile.aabb
-    return bool(abs(np.prod(hi - lo) - tile.volume) <= 1e-9 + 1e-6 * np.prod(hi - lo))
+    box = float(np.prod(hi - lo))
+    return abs(box - tile.volume) <= 1e-9 + 1e-6 * box
 
 
 def separation(a: PlacedTile, b: PlacedTile) -> float:
@@ -124,17 +126,21 @@ def shared_face_area(
     lower: PlacedTile, upper: PlacedTile, plane_tolerance: float = CONTACT_TOLERANCE
 ) -> float:
     """Area over which an upward face of `lower` meets a downward face of `upper` (m^2)."""
+    if lower.aabb[1][2] < upper.aabb[0][2] - plane_tolerance:
+        return 0.0  # lower's top is below upper's bottom: no face can meet
+    # face pairs that lie in one plane with opposite normals, lower's facing up
+    facing = lower.face_normals @ upper.face_normals.T < -0.9999
+    same_plane = np.abs(lower.face_offsets[:, None] + upper.face_offsets[None, :]) <= plane_tolerance
+    upward = (lower.face_normals[:, 2] >= MIN_SLOPE_NORMAL_Z)[:, None]
     total = 0.0
-    for fa, (na, da) in enumerate(zip(lower.face_normals, lower.face_offsets, strict=True)):
-        if na[2] < MIN_SLOPE_NORMAL_Z:
-            continue
-        for fb, (nb, db) in enumerate(zip(upper.face_normals, upper.face_offsets, strict=True)):
-            if nb @ na > -0.9999 or abs(da + db) > plane_tolerance:
-                continue
-            u, v = plane_basis(na)
-            for pa in _face_pieces_2d(lower, fa, u, v):
-                for pb in _face_pieces_2d(upper, fb, u, v):
-                    total += polygons.convex_overlap_area(pa, pb)
+    for fa, fb in zip(*np.nonzero(facing & same_plane & upward), strict=True):
+        pieces_a, pieces_b = lower.flat_face_pieces[fa], upper.flat_face_pieces[fb]
+        if pieces_a is None or pieces_b is None:  # a sloped contact: work in its plane
+            u, v = plane_basis(lower.face_normals[fa])
+            pieces_a, pieces_b = _face_pieces_2d(lower, int(fa), u, v), _face_pieces_2d(upper, int(fb), u, v)
+        for pa in pieces_a:
+            for pb in pieces_b:
+                total += polygons.convex_overlap_area(pa, pb)
     return total
 
 

@@ -8,7 +8,7 @@ A placed tile adds the pose: world vertices, faces, triangles for ray casting, f
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -115,17 +115,38 @@ class TileShape:
     height: float = 0.0  # prism only
 
     @cached_property
+    def triangles(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(T, 3) vertex indices of a triangulation of the surface and (T,) face index each."""
+        tris: list[tuple[int, int, int]] = []
+        face_of: list[int] = []
+        for k, face in enumerate(self.faces):
+            for tri in _face_triangles(self.vertices, face):
+                tris.append(tri)
+                face_of.append(k)
+        return np.array(tris, dtype=np.int64), np.array(face_of, dtype=np.int64)
+
+    @cached_property
+    def _signed_tetrahedra(self) -> tuple[Array, Array, Array]:
+        """Volumes of the tetrahedra from the mean vertex to every surface triangle."""
+        tris, _ = self.triangles
+        v = self.vertices
+        ref = v.mean(axis=0)
+        a, b, c = v[tris[:, 0]] - ref, v[tris[:, 1]] - ref, v[tris[:, 2]] - ref
+        return np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0, a + b + c, ref
+
+    @cached_property
+    def volume(self) -> float:
+        """Volume in cubic metres (the same for every tile of the type)."""
+        return float(abs(self._signed_tetrahedra[0].sum()))
+
+    @cached_property
     def centroid(self) -> Array:
         """Centre of volume in the tile frame (computed once per tile type)."""
-        v = self.vertices
-        tris = np.array([t for face in self.faces for t in _face_triangles(v, face)], dtype=np.int64)
-        a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
-        ref = v.mean(axis=0)
-        vol = np.einsum("ij,ij->i", a - ref, np.cross(b - ref, c - ref)) / 6.0
+        vol, corner_sums, ref = self._signed_tetrahedra
         total = vol.sum()
         if abs(total) < 1e-15:
             return ref
-        return ref + ((a + b + c - 3 * ref) / 4.0 * vol[:, None]).sum(axis=0) / total
+        return ref + (corner_sums / 4.0 * vol[:, None]).sum(axis=0) / total
 
 
 def prism_shape(polygon_points: Array, height: float) -> TileShape:
@@ -274,7 +295,6 @@ class PlacedTile:
     rotation: Array  # (3, 3), tile frame -> structure frame
     position: Array  # (3,), origin of the tile frame
     explicit_supports: tuple[int, ...] | None = None
-    extra: dict[str, object] = field(default_factory=dict)
 
     @cached_property
     def vertices(self) -> Array:
@@ -311,15 +331,21 @@ class PlacedTile:
         )
 
     @cached_property
-    def triangles(self) -> tuple[Array, NDArray[np.int64]]:
-        """(T, 3) vertex indices of a triangulation of the surface and (T,) face index each."""
-        tris: list[tuple[int, int, int]] = []
-        face_of: list[int] = []
-        for k, face in enumerate(self.shape.faces):
-            for tri in _face_triangles(self.shape.vertices, face):
-                tris.append(tri)
-                face_of.append(k)
-        return np.array(tris, dtype=np.int64), np.array(face_of, dtype=np.int64)
+    def flat_face_pieces(self) -> tuple[list[Array] | None, ...]:
+        """Per face: its convex counter-clockwise x-y pieces when it is horizontal, else None."""
+        pieces: list[list[Array] | None] = []
+        for k, normal in enumerate(self.face_normals):
+            if abs(normal[2]) < 1 - 1e-9:
+                pieces.append(None)
+                continue
+            flat = polygons.counter_clockwise(self.face_corners(k)[:, :2])
+            pieces.append([flat] if polygons.is_convex(flat) else [flat[list(t)] for t in polygons.triangulate(flat)])
+        return tuple(pieces)
+
+    @property
+    def triangles(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(T, 3) indices into `vertices` of a triangulation of the surface, and (T,) face index each."""
+        return self.shape.triangles
 
     @cached_property
     def aabb(self) -> tuple[Array, Array]:
@@ -331,14 +357,10 @@ class PlacedTile:
         """Centre of volume in the structure frame (the shape's, moved rigidly: no per-tile work)."""
         return self.shape.centroid @ self.rotation.T + self.position
 
-    @cached_property
+    @property
     def volume(self) -> float:
         """Volume in cubic metres."""
-        tris, _ = self.triangles
-        v = self.vertices
-        ref = v.mean(axis=0)
-        a, b, c = v[tris[:, 0]] - ref, v[tris[:, 1]] - ref, v[tris[:, 2]] - ref
-        return float(abs(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0)
+        return self.shape.volume
 
     @cached_property
     def footprint(self) -> Array:

@@ -114,10 +114,9 @@ def derive_supports(
     graph = nx.DiGraph()
     graph.add_nodes_from(tiles)
     graph.add_edges_from((s, i) for i, below in supports.items() for s in below)
-    try:
+    cycle = []
+    if not nx.is_directed_acyclic_graph(graph):  # quick; finding the cycle is not
         cycle = nx.find_cycle(graph)
-    except nx.NetworkXNoCycle:
-        cycle = []
     if cycle:
         ids = [u for u, _ in cycle]
         chain = " -> ".join(str(u) for u in ids + [ids[0]])
