@@ -1,0 +1,46 @@
+"""The scanning (VI) robot on real hardware: its base drivers, vi_node and vi_explorer in /vi.
+
+    ros2 launch vi_node inspection.launch.py base_port:=/dev/ttyUSB0 start_kinect:=true \
+        structure_file:=/path/to/structure.yaml
+
+The base, its navigate_to server and (optionally) the Kinect driver come from hardware_drivers'
+vi_robot.launch.py, which remaps the driver's organized cloud onto /vi/camera/depth/points
+(frame camera_depth_optical_frame); the overhead cameras must publish geometry_msgs/PoseStamped
+(frame map) on /vi/overhead_pose. Same nodes and parameters as in the simulation
+(config/vi_node.yaml).
+"""
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
+from launch.launch_description_sources import PythonLaunchDescriptionSource
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch_ros.actions import Node
+from launch_ros.substitutions import FindPackageShare
+
+
+def generate_launch_description() -> LaunchDescription:
+    settings = PathJoinSubstitution([FindPackageShare("vi_node"), "config", "vi_node.yaml"])
+    structure = {"structure_file": LaunchConfiguration("structure_file")}
+    arguments = [
+        DeclareLaunchArgument("base_port", default_value="/dev/ttyUSB0", description="Create base port"),
+        DeclareLaunchArgument("start_kinect", default_value="false", description="start a Kinect driver"),
+        DeclareLaunchArgument("structure_file", default_value="", description="structure; empty: /structure"),
+    ]
+    base = IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(
+            PathJoinSubstitution([FindPackageShare("hardware_drivers"), "launch", "vi_robot.launch.py"])
+        ),
+        launch_arguments={
+            "base_port": LaunchConfiguration("base_port"),
+            "start_kinect": LaunchConfiguration("start_kinect"),
+        }.items(),
+    )
+    inspection = Node(
+        package="vi_node", executable="vi_node", name="vi_node", namespace="vi",
+        parameters=[settings, structure], output="screen",
+    )
+    explorer = Node(
+        package="vi_node", executable="vi_explorer", name="vi_explorer", namespace="vi",
+        parameters=[settings, structure], output="screen",
+    )
+    return LaunchDescription([*arguments, base, inspection, explorer])
