@@ -131,6 +131,7 @@ class SupervisedDevice:
         self.baud = baud
         self.retry_interval = retry_interval
         self.health = DeviceHealth(on_event)
+        self.health.set_value("connected", "false")
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
         self._connected_flag = threading.Event()
@@ -166,6 +167,7 @@ class SupervisedDevice:
     def _connected(self, message: str) -> None:
         self.last_connect_time = time.monotonic()
         self.health.count("connects")
+        self.health.set_value("connected", "true")
         self._connected_flag.set()
         self.health.event(Level.OK, message, set_state=True)
 
@@ -210,6 +212,7 @@ class SupervisedDevice:
                 )
             finally:
                 self._connected_flag.clear()
+                self.health.set_value("connected", "false")
                 port.close()
                 self._on_disconnect()
             if was_connected:
