@@ -196,10 +196,10 @@ class CreateDriver(SupervisedDevice):
         while not first:
             if time.monotonic() > deadline:
                 garbled = self._parser.discarded_bytes
+                baud = f"the baud rate {self.config.baud} right (Create 1: 57600, Create 2: 115200)?"
                 hint = (
-                    f"received {garbled} bytes but no valid frame: is the baud rate {self.config.baud} right "
-                    f"(Create 1: 57600, Create 2: 115200)?" if garbled
-                    else "is the robot switched on and the cable plugged in?"
+                    f"received {garbled} bytes but no valid frame: is {baud}" if garbled
+                    else f"is the robot switched on, the cable plugged in, and {baud}"
                 )
                 self._count_parser()
                 raise DeviceNotResponding(

@@ -86,9 +86,10 @@ def rotational_symmetry(polygon: Array, tolerance: float = 2e-4) -> int:
 
 
 def segment_scan(scan: LaserScanData, params: LocalizationParams) -> list[NDArray[np.int64]]:
-    """Indices (into scan.ranges) of each cluster of nearby valid points, in angle order."""
-    valid = scan.valid() & (scan.ranges <= params.max_range)
-    indices = np.flatnonzero(valid)
+    """Indices (into scan.ranges) of each cluster of nearby valid points, in angle order; clusters
+    whose nearest point is beyond ``max_range`` are left out (after segmenting, so that a surface
+    crossing that range is not cut into a tile-sized piece)."""
+    indices = np.flatnonzero(scan.valid())
     if len(indices) == 0:
         return []
     r = scan.ranges[indices]
@@ -97,7 +98,8 @@ def segment_scan(scan: LaserScanData, params: LocalizationParams) -> list[NDArra
     step = np.linalg.norm(np.diff(xy, axis=0), axis=1)
     threshold = params.cluster_gap + 3.0 * abs(scan.angle_increment) * np.minimum(r[:-1], r[1:])
     breaks = (step > threshold) | (np.diff(indices) > params.max_missing_beams + 1)
-    return [c for c in np.split(indices, np.flatnonzero(breaks) + 1) if len(c)]
+    clusters = np.split(indices, np.flatnonzero(breaks) + 1)
+    return [c for c in clusters if len(c) and scan.ranges[c].min() <= params.max_range]
 
 
 def _outline(polygon: Array, pose: Pose2D) -> tuple[Array, Array, Array]:
