@@ -13,7 +13,8 @@ setup(
         ("share/" + package_name, ["package.xml", "README.md"]),
         ("share/" + package_name + "/launch", glob("launch/*.launch.py")),
         # the parameter files live in the repository's config/ (one place for every package)
-        ("share/" + package_name + "/config", ["../config/hardware_drivers.yaml", "../config/crustcrawler_arm.yaml"]),
+        ("share/" + package_name + "/config",
+         ["../config/hardware_drivers.yaml", "../config/crustcrawler_arm.yaml"]),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -108,7 +108,8 @@ class GoToPose:
             self._aligning = False  # pushed away: approach again
         if not self._aligning:
             along = dx * math.cos(pose.yaw) + dy * math.sin(pose.yaw)
-            if distance <= p.position_tolerance or (distance <= p.near and abs(along) <= p.position_tolerance):
+            arrived = distance <= p.position_tolerance
+            if arrived or (distance <= p.near and abs(along) <= p.position_tolerance):
                 self._aligning = True
             elif distance <= p.near:
                 speed = min(p.max_linear, max(p.min_linear, p.linear_gain * abs(along)))

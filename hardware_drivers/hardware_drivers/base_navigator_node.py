@@ -30,8 +30,8 @@ from hardware_drivers.planar_pose import Pose2D
 
 
 class BaseNavigatorNode(Node):
-    def __init__(self) -> None:
-        super().__init__("base_navigator")
+    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+        super().__init__("base_navigator", **node_options)
         self.params = GoToPoseParams(
             max_linear=positive(self, "max_linear", 0.2, "m/s, driving speed"),
             max_angular=positive(self, "max_angular", 1.0, "rad/s, turning speed"),
@@ -111,12 +111,14 @@ class BaseNavigatorNode(Node):
             if pose is None:
                 return False, "no pose of the base (needs odom and at least one overhead_pose)"
             if self.hazards["wheel_drop"] or self.hazards["bumper"]:
-                return False, "stopped: " + ("a wheel dropped" if self.hazards["wheel_drop"] else "the bumper is pressed")
+                cause = "a wheel dropped" if self.hazards["wheel_drop"] else "the bumper is pressed"
+                return False, f"stopped: {cause}"
             linear, angular, done = controller.command(pose, target)
             if done:
                 return True, ""
             if time.monotonic() > deadline:
-                return False, f"goal not reached within {self.timeout:g} s ({pose.distance_to(target):.2f} m away)"
+                away = pose.distance_to(target)
+                return False, f"goal not reached within {self.timeout:g} s ({away:.2f} m away)"
             twist = Twist()
             twist.linear.x, twist.angular.z = linear, angular
             self.cmd_vel.publish(twist)

@@ -40,8 +40,8 @@ from hardware_drivers.node_support import (
 
 
 class CreateBaseNode(Node):
-    def __init__(self) -> None:
-        super().__init__("create_base")
+    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+        super().__init__("create_base", **node_options)
         port = declare(self, "port", "/dev/ttyUSB0", "serial device of the Create (a pty path works)")
         baud = int(declare(self, "baud", 57600, "baud rate: 57600 for a Create 1, 115200 for a Create 2"))
         model = declare(self, "model", "create1", "create1 or create2 (wheel geometry, stream contents)")
@@ -52,7 +52,7 @@ class CreateBaseNode(Node):
         max_angular = positive(self, "max_angular", 2.0, "rad/s, largest turn rate accepted from cmd_vel")
         watchdog = positive(self, "watchdog_timeout", 0.2, "s without cmd_vel before the wheels stop")
         stream_timeout = positive(self, "stream_timeout", 0.5, "s without sensor data before reconnecting")
-        rate = positive(self, "publish_rate", 50.0, "Hz, odometry publishing rate (the Create streams at 66 Hz)")
+        rate = positive(self, "publish_rate", 50.0, "Hz, odometry rate (the Create streams at 66 Hz)")
         self.odom_frame = declare(self, "odom_frame", "odom", "frame of the odometry pose")
         self.base_frame = declare(self, "base_frame", "base_link", "frame of the robot base")
         require(bool(port), "parameter port must name a device")

@@ -258,7 +258,8 @@ class CreateDriver(SupervisedDevice):
             hazards = Hazards.from_byte(values[PacketId.BUMPS_WHEEL_DROPS])
             self._handle_hazards(hazards)
             if self.config.odometry == "encoders":
-                distance, dyaw = self._encoders.step(values[PacketId.LEFT_ENCODER], values[PacketId.RIGHT_ENCODER])
+                distance, dyaw = self._encoders.step(values[PacketId.LEFT_ENCODER],
+                                                     values[PacketId.RIGHT_ENCODER])
             else:
                 distance = values[PacketId.DISTANCE] / 1000.0
                 dyaw = math.radians(values[PacketId.ANGLE])

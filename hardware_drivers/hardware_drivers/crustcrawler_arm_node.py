@@ -58,7 +58,8 @@ def declare_arm_description(node: Node) -> dict:
     poses = {}
     for pose in pose_names:
         values = floats(node, f"named_poses.{pose}", [0.0] * len(arm_joints),
-                        f"rad, arm joint angles of the pose '{pose}' ({', '.join(arm_joints)})", len(arm_joints))
+                        f"rad, arm joint angles of the pose '{pose}' ({', '.join(arm_joints)})",
+                        len(arm_joints))
         poses[pose] = dict(zip(arm_joints, values))
     links = floats(node, "arm_link_lengths", [0.065, 0.152, 0.132, 0.105],
                    "m: shoulder height above the arm base, upper arm, forearm, wrist axis to fingertips", 4)
@@ -79,8 +80,8 @@ def declare_arm_description(node: Node) -> dict:
 
 
 class CrustCrawlerArmNode(Node):
-    def __init__(self) -> None:
-        super().__init__("crustcrawler_arm")
+    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+        super().__init__("crustcrawler_arm", **node_options)
         port = declare(self, "port", "/dev/ttyUSB1", "serial device of the Dynamixel bus (a pty path works)")
         baud = int(declare(self, "baud", 1000000, "baud rate of the bus (AX-12 default 1000000)"))
         arm = declare_arm_description(self)

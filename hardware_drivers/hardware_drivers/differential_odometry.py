@@ -34,7 +34,8 @@ def encoder_delta(previous: int, current: int, modulus: int = 65536) -> int:
     return (current - previous + modulus // 2) % modulus - modulus // 2
 
 
-def wheel_speeds(linear: float, angular: float, wheel_base: float, max_wheel_speed: float) -> tuple[float, float]:
+def wheel_speeds(linear: float, angular: float, wheel_base: float,
+                 max_wheel_speed: float) -> tuple[float, float]:
     """(right, left) wheel speeds (m/s) for a body twist, scaled down together so that neither
     exceeds `max_wheel_speed` (keeps the commanded curvature)."""
     right = linear + angular * wheel_base / 2.0

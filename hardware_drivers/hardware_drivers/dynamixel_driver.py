@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from hardware_drivers import dynamixel_protocol as dx
@@ -120,7 +120,8 @@ class ServoSilent(Exception):
 class DynamixelBus:
     """Instruction/status transactions on one port, with timeouts and bounded retries."""
 
-    def __init__(self, port: SerialPort, reply_timeout: float, retries: int, on_retry=None) -> None:  # noqa: ANN001
+    def __init__(self, port: SerialPort, reply_timeout: float, retries: int,
+                 on_retry: Callable[[int], None] | None = None) -> None:
         self.port = port
         self.reply_timeout = reply_timeout
         self.retries = retries
@@ -343,7 +344,8 @@ class ArmDriver(SupervisedDevice):
                 check = bus.read(joint.servo_id, AX12.TORQUE_ENABLE, 1)
                 if bool(check.params[0]) != enabled:
                     errors = ", ".join(dx.describe_errors(check.code)) or "unknown reason"
-                    problems.append(f"joint {joint.name} keeps torque {'off' if enabled else 'on'} ({errors})")
+                    state = "off" if enabled else "on"
+                    problems.append(f"joint {joint.name} keeps torque {state} ({errors})")
             except ServoSilent as error:
                 problems.append(f"joint {joint.name}: {error}")
         self.health.event(Level.OK if not problems else Level.ERROR,
@@ -407,8 +409,9 @@ class ArmDriver(SupervisedDevice):
             self._errors = {**{n: e for n, e in old_errors.items() if n in silent}, **errors}
         for name in sorted(silent - old_silent):
             self.health.count("joint_silences")
+            tries = f"{self.config.retries} tries of {self.config.reply_timeout * 1000:.0f} ms"
             self.health.event(Level.ERROR, f"joint {name} (id {self.joints[name].servo_id}) stopped "
-                              f"answering ({self.config.retries} tries of {self.config.reply_timeout * 1000:.0f} ms)")
+                              f"answering ({tries})")
         for name in sorted(old_silent - silent):
             self.health.event(Level.OK, f"joint {name} (id {self.joints[name].servo_id}) answers again")
         for name, joint_errors in errors.items():
@@ -453,8 +456,9 @@ class ArmDriver(SupervisedDevice):
             pending[1].set()
 
 
-def joint_configs(names: Sequence[str], ids: Sequence[int], offsets: Sequence[float], directions: Sequence[int],
-                  lower: Sequence[float], upper: Sequence[float], max_velocity: Sequence[float]) -> tuple[JointConfig, ...]:
+def joint_configs(names: Sequence[str], ids: Sequence[int], offsets: Sequence[float],
+                  directions: Sequence[int], lower: Sequence[float], upper: Sequence[float],
+                  max_velocity: Sequence[float]) -> tuple[JointConfig, ...]:
     """Joint configurations from parallel lists (the node's parameters); ValueError on bad lengths."""
     lists = {"servo_ids": ids, "joint_offsets": offsets, "joint_directions": directions,
              "joint_lower_limits": lower, "joint_upper_limits": upper, "joint_max_velocities": max_velocity}

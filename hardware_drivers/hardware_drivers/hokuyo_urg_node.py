@@ -31,8 +31,8 @@ from hardware_drivers.urg_driver import UrgConfig, UrgDriver
 
 
 class HokuyoUrgNode(Node):
-    def __init__(self) -> None:
-        super().__init__("hokuyo_urg")
+    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+        super().__init__("hokuyo_urg", **node_options)
         port = declare(self, "port", "/dev/ttyACM0", "serial device of the URG (a pty path works)")
         baud = int(declare(self, "baud", 115200, "baud rate tried first (then 19200, 38400, 115200)"))
         self.frame_id = declare(self, "frame_id", "laser", "frame of the scans")

@@ -70,66 +70,22 @@ from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.structure import StructureError, TileType
 from tiling_assembly.structure_file import load_structure
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                     reliability=ReliabilityPolicy.RELIABLE)
 DEVICE_NODES = ("create_base", "crustcrawler_arm", "hokuyo_urg")
+ARM_JOINTS = ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
 
 
 class M3RobotNode(Node):
-    def __init__(self) -> None:
-        super().__init__("m3_robot")
-        arm = declare_arm_description(self)
-        require(all(j in arm["names"] for j in ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")),
-                "joint_names must contain base_yaw, shoulder, elbow, wrist_pitch and wrist_roll")
-        carry_name = declare(self, "carry_pose", "carry", "named arm pose held while driving")
-        require(carry_name in arm["poses"], f"carry_pose '{carry_name}' is not one of named_pose_names")
+    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+        super().__init__("m3_robot", **node_options)
+        self.config = self._mission_config()
+        self.device_timeout = positive(self, "device_timeout", 1.0,
+                                       "s without odom/joint_states before a device counts as lost")
+        fix_weight = positive(self, "overhead_fix_weight", 0.3, "weight (0..1] of each overhead fix")
+        require(fix_weight <= 1.0, "overhead_fix_weight must be in (0, 1]")
         structure_file = declare(self, "structure_file", "",
                                  "structure file for the tile footprints; empty: use /structure")
-        arm_mount = floats(self, "arm_mount", [0.10, 0.0, 0.07, 0.0], "x, y, z (m), yaw (rad) of the arm base in base_link", 4)
-        laser_mount = floats(self, "laser_mount", [0.16, 0.0, 0.0], "x, y (m), yaw (rad) of the laser in base_link", 3)
-        navigation = GoToPoseParams(
-            max_linear=positive(self, "max_linear", 0.2, "m/s, driving speed"),
-            max_angular=positive(self, "max_angular", 1.0, "rad/s, turning speed"),
-            position_tolerance=positive(self, "position_tolerance", 0.01, "m, stop this close to a drive goal"),
-            yaw_tolerance=positive(self, "yaw_tolerance", 0.02, "rad, final heading tolerance"),
-        )
-        self.device_timeout = positive(self, "device_timeout", 1.0, "s without odom/joint_states before a device counts as lost")
-        fix_weight = positive(self, "overhead_fix_weight", 0.3, "weight (0..1] of each overhead fix against odometry")
-        require(fix_weight <= 1.0, "overhead_fix_weight must be in (0, 1]")
-        arm_joints = ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
-        geometry = ArmGeometry(
-            *arm["links"],
-            lower=tuple(arm["lower"][arm["names"].index(j)] for j in arm_joints),
-            upper=tuple(arm["upper"][arm["names"].index(j)] for j in arm_joints),
-        )
-        try:
-            geometry.validate()
-        except ValueError as error:
-            raise ParameterError(str(error)) from None
-        self.config = MissionConfig(
-            geometry=geometry,
-            arm_joints=arm_joints,
-            gripper_joint=arm["gripper"],
-            gripper_open=arm["gripper_open"],
-            gripper_closed=arm["gripper_closed"],
-            carry_pose=tuple(arm["poses"][carry_name][j] for j in arm_joints),
-            arm_mount=tuple(arm_mount),
-            laser_mount=tuple(laser_mount),
-            pick_standoff=positive(self, "pick_standoff", 0.35, "m from base_link to the cache point when stopping there"),
-            place_standoff=positive(self, "place_standoff", 0.32, "m from base_link to the tile's goal when stopping there"),
-            preferred_reach=positive(self, "preferred_reach", 0.22, "m from the arm base to a tile to pick"),
-            reach_tolerance=positive(self, "reach_tolerance", 0.05, "m, accepted deviation from preferred_reach"),
-            cache_search_radius=positive(self, "cache_search_radius", 0.2, "m around the cache point to look for the tile"),
-            approach_height=positive(self, "approach_height", 0.05, "m above the grasp height before going down"),
-            arm_speed=positive(self, "arm_speed", 0.8, "rad/s for planned arm moves"),
-            joint_tolerance=positive(self, "joint_tolerance", 0.04, "rad, a joint counts as arrived this close"),
-            grasp_margin=positive(self, "grasp_margin", 0.08, "rad, the gripper must stop this far from closed on a tile"),
-            navigation=navigation,
-            navigation_timeout=positive(self, "navigation_timeout", 90.0, "s allowed per drive"),
-            retreat_distance=positive(self, "retreat_distance", 0.10, "m to back away after placing"),
-            localization=LocalizationParams(
-                max_rms=positive(self, "tile_max_rms", 0.008, "m, worst accepted fit of a tile's outline"),
-            ),
-        )
         self.tile_types: dict[str, TileType] = {}
         if structure_file:
             try:
@@ -149,10 +105,12 @@ class M3RobotNode(Node):
         self._busy = False
         self.cmd_vel = self.create_publisher(Twist, "cmd_vel", 10)
         self.trajectory = self.create_publisher(JointTrajectory, "joint_trajectory", 10)
-        self.create_subscription(LaserScan, "scan", self.on_scan, qos_profile_sensor_data, callback_group=group)
+        self.create_subscription(LaserScan, "scan", self.on_scan, qos_profile_sensor_data,
+                                 callback_group=group)
         self.create_subscription(JointState, "joint_states", self.on_joints, qos_profile_sensor_data,
                                  callback_group=group)
-        self.create_subscription(Bool, "bumper", lambda m: setattr(self, "_bumper", m.data), 10, callback_group=group)
+        self.create_subscription(Bool, "bumper", lambda m: setattr(self, "_bumper", m.data), 10,
+                                 callback_group=group)
         self.create_subscription(Bool, "wheel_drop", lambda m: setattr(self, "_wheel_drop", m.data), 10,
                                  callback_group=group)
         self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, DIAGNOSTICS_QOS,
@@ -169,6 +127,59 @@ class M3RobotNode(Node):
         self.get_logger().info(
             f"serving {self.resolve_topic_name('place_tile')}; tile types known: "
             f"{', '.join(sorted(self.tile_types)) or 'none yet (waiting for /structure)'}"
+        )
+
+    def _mission_config(self) -> MissionConfig:
+        """The mission's parameters: the arm description (crustcrawler_arm.yaml) and this node's."""
+        arm = declare_arm_description(self)
+        require(all(j in arm["names"] for j in ARM_JOINTS),
+                f"joint_names must contain {', '.join(ARM_JOINTS)}")
+        carry_name = declare(self, "carry_pose", "carry", "named arm pose held while driving")
+        require(carry_name in arm["poses"], f"carry_pose '{carry_name}' is not one of named_pose_names")
+        geometry = ArmGeometry(
+            *arm["links"],
+            lower=tuple(arm["lower"][arm["names"].index(j)] for j in ARM_JOINTS),
+            upper=tuple(arm["upper"][arm["names"].index(j)] for j in ARM_JOINTS),
+        )
+        try:
+            geometry.validate()
+        except ValueError as error:
+            raise ParameterError(str(error)) from None
+
+        def length(name: str, default: float, description: str) -> float:
+            return positive(self, name, default, description)
+
+        return MissionConfig(
+            geometry=geometry,
+            arm_joints=ARM_JOINTS,
+            gripper_joint=arm["gripper"],
+            gripper_open=arm["gripper_open"],
+            gripper_closed=arm["gripper_closed"],
+            carry_pose=tuple(arm["poses"][carry_name][j] for j in ARM_JOINTS),
+            arm_mount=tuple(floats(self, "arm_mount", [0.10, 0.0, 0.07, 0.0],
+                                   "x, y, z (m), yaw (rad) of the arm base in base_link", 4)),
+            laser_mount=tuple(floats(self, "laser_mount", [0.16, 0.0, 0.0],
+                                     "x, y (m), yaw (rad) of the laser in base_link", 3)),
+            pick_standoff=length("pick_standoff", 0.35, "m, base_link to the cache point at the stop"),
+            place_standoff=length("place_standoff", 0.32, "m, base_link to the tile goal at the stop"),
+            preferred_reach=length("preferred_reach", 0.22, "m from the arm base to a tile to pick"),
+            reach_tolerance=length("reach_tolerance", 0.05, "m, accepted deviation from preferred_reach"),
+            cache_search_radius=length("cache_search_radius", 0.2, "m around the cache point to look"),
+            approach_height=length("approach_height", 0.05, "m above the grasp height before going down"),
+            arm_speed=length("arm_speed", 0.8, "rad/s for planned arm moves"),
+            joint_tolerance=length("joint_tolerance", 0.04, "rad, a joint counts as arrived this close"),
+            grasp_margin=length("grasp_margin", 0.08, "rad, the gripper must stop this far from closed"),
+            navigation=GoToPoseParams(
+                max_linear=length("max_linear", 0.2, "m/s, driving speed"),
+                max_angular=length("max_angular", 1.0, "rad/s, turning speed"),
+                position_tolerance=length("position_tolerance", 0.01, "m, stop this close to a drive goal"),
+                yaw_tolerance=length("yaw_tolerance", 0.02, "rad, final heading tolerance"),
+            ),
+            navigation_timeout=length("navigation_timeout", 90.0, "s allowed per drive"),
+            retreat_distance=length("retreat_distance", 0.10, "m to back away after placing"),
+            localization=LocalizationParams(
+                max_rms=length("tile_max_rms", 0.008, "m, worst accepted fit of a tile's outline"),
+            ),
         )
 
     # ------------------------------------------------------------------ inputs
@@ -323,23 +334,26 @@ class M3RobotNode(Node):
         else:
             goal_handle.abort()
             self.health.set_state(Level.WARN, f"idle; tile {request.tile_id} failed: {result.message}")
-            self.get_logger().error(f"tile {request.tile_id} failed ({result.outcome.name}): {result.message}")
+            self.get_logger().error(
+                f"tile {request.tile_id} failed ({result.outcome.name}): {result.message}")
         return message
 
     def _execute(self, goal_handle, request: PlaceTile.Goal) -> MissionResult:  # noqa: ANN001
         with self._lock:
             tile_type = self.tile_types.get(request.tile_type)
         if tile_type is None:
-            return MissionResult(Outcome.FAILED_NO_TILE,
-                                 f"unknown tile type '{request.tile_type}' (no footprint from /structure or structure_file)")
+            return MissionResult(Outcome.FAILED_NO_TILE, f"unknown tile type '{request.tile_type}' "
+                                 "(no footprint from /structure or structure_file)")
         frame = request.pose.header.frame_id
         if frame not in ("", "map"):
-            return MissionResult(Outcome.FAILED_NAVIGATION, f"goal pose in frame '{frame}'; this robot drives in 'map'")
+            return MissionResult(Outcome.FAILED_NAVIGATION,
+                                 f"goal pose in frame '{frame}'; this robot drives in 'map'")
         footprint = footprint_of(tile_type)
         height = float(tile_type.shape.vertices[:, 2].max() - tile_type.shape.vertices[:, 2].min())
         goal = PlaceGoal(
             tile_id=request.tile_id, tile_type=request.tile_type, footprint=footprint, height=height,
-            pose=Pose2D(request.pose.pose.position.x, request.pose.pose.position.y, yaw_of(request.pose.pose.orientation)),
+            pose=Pose2D(request.pose.pose.position.x, request.pose.pose.position.y,
+                        yaw_of(request.pose.pose.orientation)),
             z=request.pose.pose.position.z, cache=(request.cache.x, request.cache.y),
         )
         self.get_logger().info(

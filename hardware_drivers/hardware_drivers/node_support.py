@@ -45,7 +45,8 @@ def positive(node: Node, name: str, default: float, description: str) -> float:
     return value
 
 
-def floats(node: Node, name: str, default: Sequence[float], description: str, length: int | None = None) -> list[float]:
+def floats(node: Node, name: str, default: Sequence[float], description: str,
+           length: int | None = None) -> list[float]:
     value = [float(v) for v in declare(node, name, list(map(float, default)), description)]
     if length is not None:
         require(len(value) == length, f"parameter {name} needs {length} numbers, got {len(value)}")

@@ -101,7 +101,8 @@ class MissionConfig:
     gripper_open: float = 0.6  # rad
     gripper_closed: float = -0.6  # rad
     carry_pose: tuple[float, ...] = (0.0, 1.2, -1.9, -0.8, 0.0)  # rad, arm joints while driving
-    arm_mount: tuple[float, float, float, float] = (0.10, 0.0, 0.07, 0.0)  # x, y, z (m), yaw of the arm base in base_link
+    # the arm base in base_link: x, y, z (m), yaw (rad)
+    arm_mount: tuple[float, float, float, float] = (0.10, 0.0, 0.07, 0.0)
     laser_mount: tuple[float, float, float] = (0.16, 0.0, 0.0)  # x, y (m), yaw of the laser in base_link
     pick_standoff: float = 0.35  # m from base_link to the cache point when stopping
     place_standoff: float = 0.32  # m from base_link to the goal when stopping
@@ -178,7 +179,8 @@ class PlaceTileMission:
         self.phase = Phase.DRIVING_TO_CACHE
         pose = self._wait_for_pose()
         self._report(0.0)
-        self._move_arm({cfg.gripper_joint: cfg.gripper_open, **self._carry()}, "carry pose with the gripper open")
+        self._move_arm({cfg.gripper_joint: cfg.gripper_open, **self._carry()},
+                       "carry pose with the gripper open")
         stop = approach_pose(goal.cache[0], goal.cache[1], pose.x, pose.y, cfg.pick_standoff)
         self._drive_to(stop, f"the {goal.tile_type} cache at ({goal.cache[0]:.2f}, {goal.cache[1]:.2f})")
 
@@ -221,7 +223,8 @@ class PlaceTileMission:
                 self._check()
                 scan = self.hw.scan_after(self.hw.now(), timeout=2.0)
                 if scan is None:
-                    raise MissionFailure(Outcome.FAILED_HARDWARE, "no laser scan for 2 s while locating the tile")
+                    raise MissionFailure(Outcome.FAILED_HARDWARE,
+                                         "no laser scan for 2 s while locating the tile")
                 detection = find_tile(scan, goal.footprint, cfg.localization, region)
                 if detection is not None:
                     break
@@ -247,27 +250,32 @@ class PlaceTileMission:
             stop = approach_pose(tile_map.x, tile_map.y, pose.x, pose.y, standoff)
             self.log(f"tile {reach:.2f} m from the arm at {math.degrees(bearing):.0f} deg: moving the base")
             self._drive_to(stop, "a pose within the arm's reach of the tile", report=False)
-        raise MissionFailure(Outcome.FAILED_GRASP,
-                             f"the {goal.tile_type} stays out of the arm's reach after {cfg.max_adjustments} moves")
+        raise MissionFailure(
+            Outcome.FAILED_GRASP,
+            f"the {goal.tile_type} stays out of the arm's reach after {cfg.max_adjustments} moves",
+        )
 
     def _pick(self, goal: PlaceGoal, tile_in_arm: Pose2D) -> float:
         cfg = self.config
         g = cfg.geometry
         grasp_z = goal.height * cfg.grasp_height_fraction - self.arm_height
         try:
-            q_above = top_down_grasp(g, tile_in_arm.x, tile_in_arm.y, grasp_z + cfg.approach_height, tile_in_arm.yaw)
+            q_above = top_down_grasp(g, tile_in_arm.x, tile_in_arm.y, grasp_z + cfg.approach_height,
+                                     tile_in_arm.yaw)
             q_grasp = top_down_grasp(g, tile_in_arm.x, tile_in_arm.y, grasp_z, tile_in_arm.yaw)
         except Unreachable as error:
             raise MissionFailure(Outcome.FAILED_GRASP, f"tile out of the arm's reach: {error}") from None
         self._report(0.1)
-        self._move_arm({**dict(zip(cfg.arm_joints, q_above)), cfg.gripper_joint: cfg.gripper_open}, "above the tile")
+        self._move_arm({**dict(zip(cfg.arm_joints, q_above)), cfg.gripper_joint: cfg.gripper_open},
+                       "above the tile")
         self._report(0.3)
         self._move_arm(dict(zip(cfg.arm_joints, q_grasp)), "down to the tile")
         self._report(0.5)
         gripper = self._close_gripper()
         if gripper - cfg.gripper_closed < cfg.grasp_margin:
             self._move_arm({cfg.gripper_joint: cfg.gripper_open}, "open the empty gripper")
-            raise MissionFailure(Outcome.FAILED_GRASP, "the gripper closed on nothing: the tile was not grasped")
+            raise MissionFailure(Outcome.FAILED_GRASP,
+                                 "the gripper closed on nothing: the tile was not grasped")
         # the tile's yaw relative to the fingers, to place it the right way round
         offset = wrap_angle(tile_in_arm.yaw - forward(g, q_grasp).grasp_yaw())
         self._report(0.7)
@@ -292,7 +300,8 @@ class PlaceTileMission:
         for turn in sorted(range(-6, 7), key=abs):
             yaw = wrap_angle(goal_in_arm.yaw - offset + turn * period)
             try:
-                q_above = top_down_grasp(g, goal_in_arm.x, goal_in_arm.y, z + cfg.approach_height, yaw, allow_flip=False)
+                q_above = top_down_grasp(g, goal_in_arm.x, goal_in_arm.y, z + cfg.approach_height, yaw,
+                                         allow_flip=False)
                 q_place = top_down_grasp(g, goal_in_arm.x, goal_in_arm.y, z, yaw, allow_flip=False)
                 solution = (q_above, q_place)
                 break
@@ -315,7 +324,8 @@ class PlaceTileMission:
         pose = self._pose()
         arm_in_map = pose.compose(self.arm_mount)
         tool = arm_in_map.compose(Pose2D(measured.x, measured.y, measured.grasp_yaw() + offset))
-        placed_z = measured.z + self.arm_height - goal.height * cfg.grasp_height_fraction - cfg.release_clearance
+        grasp_height = goal.height * cfg.grasp_height_fraction
+        placed_z = measured.z + self.arm_height - grasp_height - cfg.release_clearance
         self._report(0.7)
         self._move_arm({cfg.gripper_joint: cfg.gripper_open}, "release the tile")
         self._report(1.0)
@@ -413,7 +423,9 @@ class PlaceTileMission:
             errors = {n: abs(goals[n] - joints[n][0]) for n in goals}
             if all(e <= cfg.joint_tolerance for e in errors.values()):
                 return
-            if gripper_only and self.hw.now() > deadline - cfg.arm_timeout + 0.3 and abs(joints[cfg.gripper_joint][1]) < 1e-3:
+            planned_end = deadline - cfg.arm_timeout
+            stopped = abs(joints[cfg.gripper_joint][1]) < 1e-3
+            if gripper_only and self.hw.now() > planned_end + 0.3 and stopped:
                 return  # the gripper stopped (holding something, or it cannot open further)
             if self.hw.now() > deadline:
                 worst = max(errors, key=errors.get)

@@ -196,7 +196,8 @@ class SupervisedDevice:
                     )
                 elif reason != last_reason:
                     self.health.event(
-                        Level.ERROR, f"{self.device_name}: {reason}; retrying every {self.retry_interval:g} s",
+                        Level.ERROR,
+                        f"{self.device_name}: {reason}; retrying every {self.retry_interval:g} s",
                         set_state=True,
                     )
                 else:

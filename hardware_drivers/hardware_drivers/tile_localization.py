@@ -49,7 +49,7 @@ class LocalizationParams:
     min_coverage: float = 0.6  # fraction of the visible outline that must carry points
     max_see_through: float = 0.1  # fraction of the visible outline the laser may see through
     see_through_margin: float = 0.03  # m behind the outline that counts as seeing through
-    yaw_starts: int = 8  # starting yaws per symmetry period
+    yaw_starts: int = 4  # evenly spread starting yaws per symmetry period (besides edge-aligned ones)
     outline_sample: float = 0.004  # m between checked points of the outline
 
 
@@ -117,28 +117,50 @@ def _facing(a: Array, b: Array, normal: Array) -> NDArray[np.bool_]:
     return np.einsum("ij,ij->i", normal, -middle) > 0.0
 
 
-def _point_to_segments(points: Array, a: Array, b: Array) -> Array:
-    """(K, E) distances of points to segments."""
+def _nearest_on_segments(points: Array, a: Array, b: Array) -> tuple[Array, Array]:
+    """For each point, its distance to the nearest segment and the nearest point on it."""
     ab = b - a
     length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
     t = np.clip(np.einsum("kij,ij->ki", points[:, None, :] - a[None], ab) / length2, 0.0, 1.0)
-    nearest = a[None] + t[..., None] * ab[None]
-    return np.linalg.norm(points[:, None, :] - nearest, axis=2)
+    nearest = a[None] + t[..., None] * ab[None]  # (K, E, 2)
+    distances = np.linalg.norm(points[:, None, :] - nearest, axis=2)
+    best = distances.argmin(axis=1)
+    rows = np.arange(len(points))
+    return distances[rows, best], nearest[rows, best]
 
 
-def _residuals(parameters: Array, points: Array, polygon: Array) -> Array:
+def _facing_outline(parameters: Array, polygon: Array) -> tuple[Array, Array]:
     a, b, normal = _outline(polygon, Pose2D(*parameters))
     facing = _facing(a, b, normal)
     if not facing.any():
         facing = np.ones(len(a), dtype=bool)
-    return _point_to_segments(points, a[facing], b[facing]).min(axis=1)
+    return a[facing], b[facing]
 
 
-def _visible_outline(polygon: Array, pose: Pose2D, spacing: float) -> Array:
+def _residuals(parameters: Array, points: Array, polygon: Array) -> Array:
+    """Distance of every point to the nearest outline edge that faces the laser."""
+    return _nearest_on_segments(points, *_facing_outline(parameters, polygon))[0]
+
+
+def _jacobian(parameters: Array, points: Array, polygon: Array) -> Array:
+    """d(residual)/d(x, y, yaw): the nearest point q moves with the pose, so for d = |p - q| and
+    u = (p - q) / d: dd/dt = -u and dd/dyaw = -u . perp(q - t)."""
+    distances, nearest = _nearest_on_segments(points, *_facing_outline(parameters, polygon))
+    u = (points - nearest) / np.maximum(distances, 1e-9)[:, None]
+    arm = nearest - parameters[:2]
+    d_yaw = -(u[:, 0] * -arm[:, 1] + u[:, 1] * arm[:, 0])
+    return np.column_stack([-u[:, 0], -u[:, 1], d_yaw])
+
+
+def _visible_outline(polygon: Array, pose: Pose2D, spacing: float, grazing_limit: float) -> Array:
     """Sample points of the posed outline that the laser at the origin can see."""
     a, b, normal = _outline(polygon, pose)
     samples = []
-    for start, end in zip(a[_facing(a, b, normal)], b[_facing(a, b, normal)]):
+    middle = (a + b) / 2.0
+    incidence = np.einsum("ij,ij->i", normal, -middle) / np.linalg.norm(middle, axis=1)
+    # faces seen at grazing incidence return few, unreliable points: skip them
+    seen = _facing(a, b, normal) & (incidence > math.cos(grazing_limit))
+    for start, end in zip(a[seen], b[seen]):
         count = max(2, int(np.linalg.norm(end - start) / spacing))
         t = (np.arange(count) + 0.5) / count
         samples.append(start + t[:, None] * (end - start))
@@ -166,9 +188,11 @@ def _ray_hits(bearing: Array, start: Array, end: Array) -> Array:
     return np.where(hit, t, np.inf)
 
 
-def _check_against_scan(scan: LaserScanData, polygon: Array, pose: Pose2D, params: LocalizationParams) -> tuple[float, float]:
-    """(coverage, see-through) of the posed footprint's visible outline in the scan."""
-    samples = _visible_outline(polygon, pose, params.outline_sample)
+def _check_against_scan(scan: LaserScanData, polygon: Array, pose: Pose2D, params: LocalizationParams,
+                        grazing_limit: float) -> tuple[float, float]:
+    """(coverage, see-through) of the posed footprint's visible outline in the scan, leaving out
+    faces seen beyond `grazing_limit` (rad) from their normal."""
+    samples = _visible_outline(polygon, pose, params.outline_sample, grazing_limit)
     if len(samples) == 0:
         return 0.0, 1.0
     bearing = np.arctan2(samples[:, 1], samples[:, 0])
@@ -185,13 +209,49 @@ def _check_against_scan(scan: LaserScanData, polygon: Array, pose: Pose2D, param
     measured = np.full(len(samples), np.nan)
     measured[inside] = scan.ranges[index[inside]]
     finite = np.isfinite(measured)
-    covered = finite & (np.abs(measured - expected) <= max(params.see_through_margin / 2.0, 3 * params.max_rms))
+    on_outline = max(params.see_through_margin / 2.0, 3 * params.max_rms)
+    covered = finite & (np.abs(measured - expected) <= on_outline)
     behind = ~finite | (measured > expected + params.see_through_margin)
     occluded = finite & (measured < expected - params.see_through_margin)
     observable = inside & ~occluded
     if not observable.any():
         return 0.0, 1.0
     return float(covered[observable].mean()), float(behind[observable & inside].mean())
+
+
+def _yaw_starts(points: Array, polygon: Array, period: float, uniform: int) -> list[float]:
+    """Starting yaws: each outline edge laid along the straight runs of the points (the whole
+    cluster and each half: one or two visible faces), and a few evenly spread ones."""
+    directions = []
+    half = len(points) // 2
+    for part in (points, points[: half + 1], points[half:]):
+        if len(part) >= 3:
+            _, _, vt = np.linalg.svd(part - part.mean(axis=0))
+            directions.append(math.atan2(vt[0, 1], vt[0, 0]))
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    edge_angles = np.arctan2(edges[:, 1], edges[:, 0])
+    candidates = [line - edge + turn for line in directions for edge in edge_angles for turn in (0.0, math.pi)]
+    candidates += [-period / 2.0 + period * (i + 0.5) / uniform for i in range(uniform)]
+    starts: list[float] = []
+    for yaw in candidates:
+        yaw = (wrap_angle(yaw) + period / 2.0) % period - period / 2.0
+        if all(abs(wrap_angle(yaw - other)) > math.radians(2.0) for other in starts):
+            starts.append(yaw)
+    return starts
+
+
+def _refine(points: Array, polygon: Array, start: Pose2D, symmetry: int) -> tuple[Pose2D, float]:
+    """Robust least squares of the point-to-facing-outline distances from `start`; the pose (yaw
+    modulo the symmetry, in [-period/2, period/2)) and the RMS distance."""
+    result = least_squares(
+        _residuals, np.array([start.x, start.y, start.yaw]), jac=_jacobian, args=(points, polygon),
+        loss="soft_l1", f_scale=0.005, x_scale=np.array([0.01, 0.01, 0.1]), max_nfev=200,
+    )
+    rms = float(np.sqrt(np.mean(_residuals(result.x, points, polygon) ** 2)))
+    period = 2.0 * math.pi / symmetry
+    x, y, yaw = result.x
+    yaw = (wrap_angle(yaw) + period / 2.0) % period - period / 2.0
+    return Pose2D(float(x), float(y), float(yaw)), rms
 
 
 def fit_footprint(points: Array, polygon: Array, params: LocalizationParams = LocalizationParams(),
@@ -205,21 +265,14 @@ def fit_footprint(points: Array, polygon: Array, params: LocalizationParams = Lo
     centre = np.asarray(polygons.convex_hull_2d(polygon), dtype=float).mean(axis=0)
     mean = points.mean(axis=0)
     away = mean / max(np.linalg.norm(mean), 1e-9)
-    depth = 0.5 * math.sqrt(abs(polygons.signed_area(polygon)))
     fits: list[tuple[Pose2D, float]] = []
-    for i in range(params.yaw_starts):
-        yaw = -period / 2.0 + period * (i + 0.5) / params.yaw_starts
-        c, s = math.cos(yaw), math.sin(yaw)
-        origin = mean + away * depth - np.array([c * centre[0] - s * centre[1], s * centre[0] + c * centre[1]])
-        result = least_squares(
-            _residuals, np.array([origin[0], origin[1], yaw]), args=(points, polygon),
-            loss="soft_l1", f_scale=0.005, x_scale=np.array([0.01, 0.01, 0.1]), max_nfev=200,
-        )
-        rms = float(np.sqrt(np.mean(_residuals(result.x, points, polygon) ** 2)))
-        x, y, fitted_yaw = result.x
-        # the yaw modulo the symmetry, in [-period/2, period/2)
-        fitted_yaw = (wrap_angle(fitted_yaw) + period / 2.0) % period - period / 2.0
-        pose = Pose2D(float(x), float(y), float(fitted_yaw))
+    for yaw in _yaw_starts(points, polygon, period, params.yaw_starts):
+        turned = Pose2D(0.0, 0.0, yaw).transform_points(polygon - centre)
+        # start with the outline's side nearest the laser through the points' mean
+        depth = float(np.max(turned @ -away))
+        turned_centre = Pose2D(0.0, 0.0, yaw).transform_points(centre[None, :])[0]
+        origin = mean + away * depth - turned_centre
+        pose, rms = _refine(points, polygon, Pose2D(float(origin[0]), float(origin[1]), yaw), k)
         duplicate = any(
             p.distance_to(pose) < 0.002 and abs(wrap_angle((p.yaw - pose.yaw) * k)) / k < math.radians(1.0)
             for p, _ in fits
@@ -238,7 +291,8 @@ def _candidate_fits(scan: LaserScanData, polygon: Array, params: LocalizationPar
     for cluster in segment_scan(scan, params):
         if len(cluster) < params.min_points:
             continue
-        points = np.column_stack([ranges[cluster] * np.cos(angles[cluster]), ranges[cluster] * np.sin(angles[cluster])])
+        r, a = ranges[cluster], angles[cluster]
+        points = np.column_stack([r * np.cos(a), r * np.sin(a)])
         extent = np.linalg.norm(points[-1] - points[0])
         if extent > diameter + params.size_margin:
             continue
@@ -246,16 +300,32 @@ def _candidate_fits(scan: LaserScanData, polygon: Array, params: LocalizationPar
             centre = points.mean(axis=0)
             if math.hypot(centre[0] - region[0], centre[1] - region[1]) > region[2]:
                 continue
-        scored = []
-        for pose, rms in fit_footprint(points, polygon, params, symmetry):
-            if rms > 2.0 * params.max_rms:
-                continue
-            coverage, see_through = _check_against_scan(scan, polygon, pose, params)
-            quality = coverage * (1.0 - see_through) * math.exp(-rms / params.max_rms)
-            scored.append(TileDetection(pose, rms, len(cluster), coverage, see_through, quality))
-        if scored:
-            detections.append(max(scored, key=lambda d: d.quality))
+        fits = fit_footprint(points, polygon, params, symmetry)
+        scored = [_score(scan, polygon, params, pose, rms, len(cluster))
+                  for pose, rms in fits if rms <= 2.0 * params.max_rms]
+        if not scored:
+            continue
+        # a face seen end-on pins the yaw down poorly: look around the best fit, rank by how well
+        # every face that would be visible agrees with the scan (grazing ones included)
+        best = max(scored, key=lambda d: d[1])[0]
+        for turn in (-8.0, -4.0, 4.0, 8.0):
+            start = Pose2D(best.pose.x, best.pose.y, best.pose.yaw + math.radians(turn))
+            pose, rms = _refine(points, polygon, start, symmetry)
+            if rms <= 2.0 * params.max_rms:
+                scored.append(_score(scan, polygon, params, pose, rms, len(cluster)))
+        detections.append(max(scored, key=lambda d: d[1])[0])
     return detections
+
+
+def _score(scan: LaserScanData, polygon: Array, params: LocalizationParams, pose: Pose2D, rms: float,
+           points: int) -> tuple[TileDetection, float]:
+    """The detection (judged on the faces seen within 75 degrees of their normal) and its ranking
+    score (judged on every face seen within 88 degrees)."""
+    coverage, see_through = _check_against_scan(scan, polygon, pose, params, math.radians(75.0))
+    quality = coverage * (1.0 - see_through) * math.exp(-rms / params.max_rms)
+    strict_coverage, strict_see_through = _check_against_scan(scan, polygon, pose, params, math.radians(88.0))
+    rank = strict_coverage * (1.0 - strict_see_through) * math.exp(-rms / params.max_rms)
+    return TileDetection(pose, rms, points, coverage, see_through, quality), rank
 
 
 def find_tile(scan: LaserScanData, polygon: Array, params: LocalizationParams = LocalizationParams(),
@@ -266,7 +336,8 @@ def find_tile(scan: LaserScanData, polygon: Array, params: LocalizationParams = 
     """
     accepted = [
         d for d in _candidate_fits(scan, polygon, params, region)
-        if d.rms <= params.max_rms and d.coverage >= params.min_coverage and d.see_through <= params.max_see_through
+        if d.rms <= params.max_rms and d.coverage >= params.min_coverage
+        and d.see_through <= params.max_see_through
     ]
     return max(accepted, key=lambda d: d.quality, default=None)
 

@@ -101,7 +101,8 @@ class NodeProcess:
             command += ["--params-file", str(REPO / params_file)]
         command += list(ros_args)
         env = {**os.environ, "RCUTILS_CONSOLE_OUTPUT_FORMAT": "[{severity}] [{name}]: {message}"}
-        self.process = subprocess.Popen(command, stdout=self._log, stderr=subprocess.STDOUT, cwd=REPO, env=env)
+        self.process = subprocess.Popen(command, stdout=self._log, stderr=subprocess.STDOUT, cwd=REPO,
+                                        env=env)
 
     def log(self) -> str:
         return self.log_path.read_text()

@@ -68,7 +68,8 @@ class RosProbe:
         self._thread = threading.Thread(target=self.executor.spin, daemon=True)
         self._thread.start()
 
-    def collect(self, message_type: Any, topic: str, qos: QoSProfile | int = qos_profile_sensor_data) -> Collector:
+    def collect(self, message_type: Any, topic: str,
+                qos: QoSProfile | int = qos_profile_sensor_data) -> Collector:
         collector: Collector = Collector()
         self.node.create_subscription(message_type, topic, collector.add, qos)
         return collector

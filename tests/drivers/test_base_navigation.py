@@ -88,5 +88,6 @@ def test_odometry_integration_and_encoder_wrap() -> None:
     odometry = DifferentialOdometry()
     for k in range(100):  # a quarter circle of radius 1 m in 100 steps
         odometry.advance(math.pi / 2 / 100, math.pi / 2 / 100, k * 0.01)
-    assert (odometry.pose.x, odometry.pose.y, odometry.pose.yaw) == pytest.approx((1.0, 1.0, math.pi / 2), abs=1e-4)
+    pose = odometry.pose
+    assert (pose.x, pose.y, pose.yaw) == pytest.approx((1.0, 1.0, math.pi / 2), abs=1e-4)
     assert odometry.linear_velocity == pytest.approx(math.pi / 2, rel=1e-6)

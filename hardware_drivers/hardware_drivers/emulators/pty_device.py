@@ -237,7 +237,8 @@ def common_arguments(parser: argparse.ArgumentParser, default_link: str, default
         "--port", default=default_link,
         help=f"path under which the emulated device appears (a symlink to the pty; default {default_link})",
     )
-    parser.add_argument("--baud", type=int, default=default_baud, help=f"the device's baud rate (default {default_baud})")
+    parser.add_argument("--baud", type=int, default=default_baud,
+                        help=f"the device's baud rate (default {default_baud}; 0: any, as over USB)")
     parser.add_argument("--seed", type=int, default=1, help="random seed for noise and garbage")
 
 

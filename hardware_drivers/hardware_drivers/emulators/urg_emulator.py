@@ -122,7 +122,8 @@ class UrgEmulator(EmulatorApp):
         steps = np.arange(start, end + 1)
         angles = (steps - self.parameters.afrt) * 2.0 * math.pi / self.parameters.ares
         distances = ray_cast(self.laser_pose(), angles, self.scene_segments())
-        noisy = distances + self.np_rng.normal(0.0, self.noise, len(distances)) if self.noise > 0 else distances
+        noisy = distances + self.np_rng.normal(0.0, self.noise, len(distances)) if self.noise > 0 \
+            else distances
         mm = np.where(np.isfinite(noisy), np.round(noisy * 1000.0), 0.0)
         valid = (mm >= self.parameters.dmin) & (mm <= self.parameters.dmax)
         raw = np.where(valid, mm, 0).astype(int)
@@ -200,7 +201,8 @@ class UrgEmulator(EmulatorApp):
             if not self.laser_on:
                 self.send(scip.status_reply(line, b"10"))
                 return
-            self.send(scip.scan_reply(line, b"00", self.timestamp(), self.measure(start, end, cluster), chars))
+            ranges = self.measure(start, end, cluster)
+            self.send(scip.scan_reply(line, b"00", self.timestamp(), ranges, chars))
             return
         interval, scans = int(body[10:11]), int(body[11:13])
         self.laser_on = True
@@ -268,14 +270,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scip", choices=("1.1", "2.0"), default="1.1",
                         help="protocol at power-up (the URG-04LX boots in SCIP 1.1)")
     parser.add_argument("--tile-polygon", default=LONG_RECTANGLE,
-                        help="the tile's outline in its frame, 'x,y;x,y;...' (m); default: the long rectangle")
+                        help="the tile's outline in its frame, 'x,y;x,y;...' (m); default: long rectangle")
     parser.add_argument("--tile-pose", default="0.25,0.0,0.0",
                         help="X,Y,YAW of the tile frame in the scene (m, rad), or 'none'")
     parser.add_argument("--segments", default="",
                         help="walls as 'x1,y1,x2,y2;...' in the scene frame (m)")
     parser.add_argument("--noise", type=float, default=0.003, help="range noise sigma (m), default 0.003")
     parser.add_argument("--robot-pose-file", default=None,
-                        help="the robot's true pose file (from create_emulator --pose-file): scene in world frame")
+                        help="true pose file of the robot (create_emulator --pose-file): "
+                        "the scene is then in the world frame")
     parser.add_argument("--laser-mount", default="0,0,0", help="X,Y,YAW of the laser on the robot base")
     args = parser.parse_args(argv)
 
