@@ -35,7 +35,7 @@ ARM_JOINTS = ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
 DOWN = -math.pi / 2.0
 
 
-class Unreachable(ValueError):
+class UnreachableError(ValueError):
     """A tool pose the arm cannot reach (out of reach or outside the joint limits)."""
 
 
@@ -55,7 +55,7 @@ class ArmGeometry:
                 raise ValueError(f"arm geometry: {name} must be a positive length, got {value}")
         if len(self.lower) != 5 or len(self.upper) != 5:
             raise ValueError("arm geometry: 5 lower and 5 upper joint limits are needed")
-        if any(lo >= hi for lo, hi in zip(self.lower, self.upper)):
+        if any(lo >= hi for lo, hi in zip(self.lower, self.upper, strict=True)):
             raise ValueError("arm geometry: every lower joint limit must be below its upper limit")
 
 
@@ -102,17 +102,17 @@ def tool_rotation(q: Sequence[float]) -> NDArray[np.float64]:
 
 
 def _within(geometry: ArmGeometry, q: Sequence[float]) -> str | None:
-    for name, value, lo, hi in zip(ARM_JOINTS, q, geometry.lower, geometry.upper):
+    for name, value, lo, hi in zip(ARM_JOINTS, q, geometry.lower, geometry.upper, strict=True):
         if not lo - 1e-9 <= value <= hi + 1e-9:
             return f"{name} would need {value:.2f} rad, outside [{lo:.2f}, {hi:.2f}]"
     return None
 
 
 def inverse(geometry: ArmGeometry, pose: ToolPose) -> tuple[float, float, float, float, float]:
-    """Joint angles reaching `pose` (elbow up preferred); Unreachable with the reason otherwise."""
+    """Joint angles reaching `pose` (elbow up preferred); UnreachableError with the reason otherwise."""
     r = math.hypot(pose.x, pose.y)
     if r < 1e-6:
-        raise Unreachable("a tool point on the base's axis has no defined base yaw")
+        raise UnreachableError("a tool point on the base's axis has no defined base yaw")
     q1 = math.atan2(pose.y, pose.x)
     # the wrist pitch axis, in the arm's vertical plane, relative to the shoulder
     wr = r - geometry.tool_length * math.cos(pose.pitch)
@@ -121,7 +121,7 @@ def inverse(geometry: ArmGeometry, pose: ToolPose) -> tuple[float, float, float,
     distance = math.hypot(wr, wz)
     cos_q3 = (distance**2 - l2**2 - l3**2) / (2.0 * l2 * l3)
     if cos_q3 > 1.0 + 1e-9 or cos_q3 < -1.0 - 1e-9:
-        raise Unreachable(
+        raise UnreachableError(
             f"wrist at {distance * 1000:.0f} mm from the shoulder is outside the arm's reach "
             f"[{abs(l2 - l3) * 1000:.0f}, {(l2 + l3) * 1000:.0f}] mm"
         )
@@ -136,7 +136,7 @@ def inverse(geometry: ArmGeometry, pose: ToolPose) -> tuple[float, float, float,
         if problem is None:
             return q
         problems.append(problem)
-    raise Unreachable("; ".join(dict.fromkeys(problems)))
+    raise UnreachableError("; ".join(dict.fromkeys(problems)))
 
 
 def top_down_grasp(geometry: ArmGeometry, x: float, y: float, z: float, grasp_yaw: float,
@@ -154,6 +154,6 @@ def top_down_grasp(geometry: ArmGeometry, x: float, y: float, z: float, grasp_ya
     for roll in options:
         try:
             return inverse(geometry, ToolPose(x, y, z, DOWN, roll))
-        except Unreachable as error:
+        except UnreachableError as error:
             problems.append(str(error))
-    raise Unreachable("; ".join(dict.fromkeys(problems)))
+    raise UnreachableError("; ".join(dict.fromkeys(problems)))

@@ -92,8 +92,8 @@ class GoToPose:
     millimetres to the side would make the base circle around it.
     """
 
-    def __init__(self, params: GoToPoseParams = GoToPoseParams()) -> None:
-        self.params = params
+    def __init__(self, params: GoToPoseParams | None = None) -> None:
+        self.params = params or GoToPoseParams()
         self._aligning = False
 
     def reset(self) -> None:

@@ -21,16 +21,16 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Bool
-from tiling_assembly_msgs.action import NavigateTo
 
 from hardware_drivers.base_navigation import GoToPose, GoToPoseParams
 from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
 from hardware_drivers.node_support import declare, positive, require, run_node
 from hardware_drivers.planar_pose import Pose2D
+from tiling_assembly_msgs.action import NavigateTo
 
 
 class BaseNavigatorNode(Node):
-    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+    def __init__(self, **node_options) -> None:
         super().__init__("base_navigator", **node_options)
         self.params = GoToPoseParams(
             max_linear=positive(self, "max_linear", 0.2, "m/s, driving speed"),
@@ -66,11 +66,11 @@ class BaseNavigatorNode(Node):
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
-    def on_cancel(self, goal_handle) -> CancelResponse:  # noqa: ANN001
+    def on_cancel(self, goal_handle) -> CancelResponse:
         self.cmd_vel.publish(Twist())
         return CancelResponse.ACCEPT
 
-    def execute(self, goal_handle) -> NavigateTo.Result:  # noqa: ANN001
+    def execute(self, goal_handle) -> NavigateTo.Result:
         try:
             success, message = self._drive(goal_handle)
         finally:
@@ -92,7 +92,7 @@ class BaseNavigatorNode(Node):
             self.get_logger().error(f"navigate_to failed: {message}")
         return result
 
-    def _drive(self, goal_handle) -> tuple[bool, str]:  # noqa: ANN001
+    def _drive(self, goal_handle) -> tuple[bool, str]:
         request: NavigateTo.Goal = goal_handle.request
         target = Pose2D(request.target.pose.position.x, request.target.pose.position.y,
                         yaw_of(request.target.pose.orientation))

@@ -40,7 +40,7 @@ from hardware_drivers.node_support import (
 
 
 class CreateBaseNode(Node):
-    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+    def __init__(self, **node_options) -> None:
         super().__init__("create_base", **node_options)
         port = declare(self, "port", "/dev/ttyUSB0", "serial device of the Create (a pty path works)")
         baud = int(declare(self, "baud", 57600, "baud rate: 57600 for a Create 1, 115200 for a Create 2"))
@@ -99,7 +99,7 @@ class CreateBaseNode(Node):
             self.drop_publisher.publish(Bool(data=hazards[1]))
             self.battery_publisher.publish(self.battery_message(state, stamp.to_msg()))
 
-    def odometry_message(self, state: CreateState, stamp) -> Odometry:  # noqa: ANN001
+    def odometry_message(self, state: CreateState, stamp) -> Odometry:
         msg = Odometry()
         msg.header.stamp = stamp
         msg.header.frame_id = self.odom_frame
@@ -115,7 +115,7 @@ class CreateBaseNode(Node):
         msg.twist.covariance = _diagonal([1e-3, 1e-3, 1e6, 1e6, 1e6, 3e-3])
         return msg
 
-    def battery_message(self, state: CreateState, stamp) -> BatteryState:  # noqa: ANN001
+    def battery_message(self, state: CreateState, stamp) -> BatteryState:
         msg = BatteryState()
         msg.header.stamp = stamp
         msg.header.frame_id = self.base_frame

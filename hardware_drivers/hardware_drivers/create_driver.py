@@ -33,7 +33,7 @@ from hardware_drivers.differential_odometry import (
     wheel_speeds,
 )
 from hardware_drivers.planar_pose import Pose2D
-from hardware_drivers.serial_link import DeviceNotResponding, SerialPort, SupervisedDevice
+from hardware_drivers.serial_link import DeviceNotRespondingError, SerialPort, SupervisedDevice
 
 ODOMETRY_SOURCES = ("distance_angle", "encoders")
 MODELS = ("create1", "create2")
@@ -170,7 +170,7 @@ class CreateDriver(SupervisedDevice):
             return True  # already stopped: do not flood the line with zeros
         try:
             port.write(create_oi.drive_direct(right_mm_s, left_mm_s))
-        except Exception:  # noqa: BLE001 - the session thread notices and reports the loss
+        except Exception:
             return False
         with self._lock:
             self._commanded = (right_mm_s, left_mm_s)
@@ -202,7 +202,7 @@ class CreateDriver(SupervisedDevice):
                     else f"is the robot switched on, the cable plugged in, and {baud}"
                 )
                 self._count_parser()
-                raise DeviceNotResponding(
+                raise DeviceNotRespondingError(
                     f"no sensor stream from {self.path} within {self.config.connect_timeout:g} s; {hint}"
                 )
             first = self._parser.feed(port.read())
@@ -222,7 +222,7 @@ class CreateDriver(SupervisedDevice):
                 self._apply_frames(frames)
             elif now - last_frame > self.config.stream_timeout:
                 self._count_parser()
-                raise DeviceNotResponding(
+                raise DeviceNotRespondingError(
                     f"no valid sensor frame for {self.config.stream_timeout:g} s (robot off or asleep?)"
                 )
             self._count_parser()

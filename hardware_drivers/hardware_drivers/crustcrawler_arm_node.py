@@ -60,11 +60,11 @@ def declare_arm_description(node: Node) -> dict:
         values = floats(node, f"named_poses.{pose}", [0.0] * len(arm_joints),
                         f"rad, arm joint angles of the pose '{pose}' ({', '.join(arm_joints)})",
                         len(arm_joints))
-        poses[pose] = dict(zip(arm_joints, values))
+        poses[pose] = dict(zip(arm_joints, values, strict=True))
     links = floats(node, "arm_link_lengths", [0.065, 0.152, 0.132, 0.105],
                    "m: shoulder height above the arm base, upper arm, forearm, wrist axis to fingertips", 4)
     require(all(v > 0 for v in links), "arm_link_lengths must be positive")
-    limits = dict(zip(names, zip(lower, upper)))
+    limits = dict(zip(names, zip(lower, upper, strict=True), strict=True))
     for pose, values in poses.items():
         for joint, angle in values.items():
             lo, hi = limits[joint]
@@ -80,7 +80,7 @@ def declare_arm_description(node: Node) -> dict:
 
 
 class CrustCrawlerArmNode(Node):
-    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+    def __init__(self, **node_options) -> None:
         super().__init__("crustcrawler_arm", **node_options)
         port = declare(self, "port", "/dev/ttyUSB1", "serial device of the Dynamixel bus (a pty path works)")
         baud = int(declare(self, "baud", 1000000, "baud rate of the bus (AX-12 default 1000000)"))
@@ -130,7 +130,7 @@ class CrustCrawlerArmNode(Node):
                 if len(point.positions) != len(msg.joint_names):
                     raise JointGoalError(f"a point has {len(point.positions)} positions for "
                                          f"{len(msg.joint_names)} joints")
-                goals = dict(zip(msg.joint_names, point.positions))
+                goals = dict(zip(msg.joint_names, point.positions, strict=True))
                 self.driver.check_goal(goals)
                 t = point.time_from_start.sec + point.time_from_start.nanosec * 1e-9
                 points.append((t, goals))

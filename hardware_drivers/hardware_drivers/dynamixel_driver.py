@@ -25,7 +25,7 @@ from hardware_drivers import dynamixel_protocol as dx
 from hardware_drivers.device_health import EventSink, Level
 from hardware_drivers.dynamixel_protocol import AX12, ErrorBit, Instruction
 from hardware_drivers.serial_link import (
-    DeviceNotResponding,
+    DeviceNotRespondingError,
     SerialPort,
     SupervisedDevice,
 )
@@ -113,7 +113,7 @@ class JointGoalError(ValueError):
     """A goal the arm refuses (unknown joint, outside the joint limits)."""
 
 
-class ServoSilent(Exception):
+class ServoSilentError(Exception):
     """One servo did not answer after the bounded retries."""
 
 
@@ -132,7 +132,7 @@ class DynamixelBus:
         self._on_retry = on_retry
 
     def transact(self, servo_id: int, instruction: int, params: bytes = b"") -> dx.Packet:
-        """The servo's status packet for one instruction; ServoSilent after `retries` attempts."""
+        """The servo's status packet for one instruction; ServoSilentError after `retries` attempts."""
         packet = dx.instruction_packet(servo_id, instruction, params)
         for attempt in range(1, self.retries + 1):
             reply = self._attempt(servo_id, packet)
@@ -142,7 +142,7 @@ class DynamixelBus:
             if attempt < self.retries and self._on_retry is not None:
                 self._on_retry(servo_id)
         self.silent_transactions += 1
-        raise ServoSilent(f"servo {servo_id} gave no valid status packet after {self.retries} tries")
+        raise ServoSilentError(f"servo {servo_id} gave no valid status packet after {self.retries} tries")
 
     def _attempt(self, servo_id: int, packet: bytes) -> dx.Packet | None:
         self.port.discard_input()
@@ -169,7 +169,8 @@ class DynamixelBus:
     def read(self, servo_id: int, address: int, length: int) -> dx.Packet:
         reply = self.transact(servo_id, Instruction.READ, bytes([address, length]))
         if len(reply.params) != length:
-            raise ServoSilent(f"servo {servo_id} answered a READ of {length} bytes with {len(reply.params)}")
+            raise ServoSilentError(
+                f"servo {servo_id} answered a READ of {length} bytes with {len(reply.params)}")
         return reply
 
     def write(self, servo_id: int, address: int, data: bytes) -> int:
@@ -276,10 +277,10 @@ class ArmDriver(SupervisedDevice):
             try:
                 bus.ping(joint.servo_id)
                 answering.append(joint)
-            except ServoSilent:
+            except ServoSilentError:
                 missing.append(joint)
         if not answering:
-            raise DeviceNotResponding(
+            raise DeviceNotRespondingError(
                 f"no servo answers a ping on {self.path} (ids {[j.servo_id for j in self.config.joints]}): "
                 f"is the arm powered, and the baud rate {self.config.baud} right?"
             )
@@ -303,7 +304,7 @@ class ArmDriver(SupervisedDevice):
             if self._read_all(bus):
                 last_answer = time.monotonic()
             elif time.monotonic() - last_answer > self.config.silent_timeout:
-                raise DeviceNotResponding(f"no servo answered for {self.config.silent_timeout:g} s")
+                raise DeviceNotRespondingError(f"no servo answered for {self.config.silent_timeout:g} s")
             self._update_health(bus)
             next_cycle += period
             delay = next_cycle - time.monotonic()
@@ -324,7 +325,7 @@ class ArmDriver(SupervisedDevice):
             present = min(max(present, low), high)
             bus.write(joint.servo_id, AX12.GOAL_POSITION, dx.u16(present))
             bus.write(joint.servo_id, AX12.TORQUE_ENABLE, b"\x01")
-        except ServoSilent:
+        except ServoSilentError:
             self.health.count("configure_failures")
 
     def _apply_torque(self, bus: DynamixelBus) -> None:
@@ -346,7 +347,7 @@ class ArmDriver(SupervisedDevice):
                     errors = ", ".join(dx.describe_errors(check.code)) or "unknown reason"
                     state = "off" if enabled else "on"
                     problems.append(f"joint {joint.name} keeps torque {state} ({errors})")
-            except ServoSilent as error:
+            except ServoSilentError as error:
                 problems.append(f"joint {joint.name}: {error}")
         self.health.event(Level.OK if not problems else Level.ERROR,
                           f"torque {'enabled' if enabled else 'disabled'}"
@@ -375,7 +376,7 @@ class ArmDriver(SupervisedDevice):
         for joint in self.config.joints:
             try:
                 reply = bus.read(joint.servo_id, dx.STATE_BLOCK_START, dx.STATE_BLOCK_LENGTH)
-            except ServoSilent:
+            except ServoSilentError:
                 silent.add(joint.name)
                 continue
             any_answer = True
@@ -467,5 +468,6 @@ def joint_configs(names: Sequence[str], ids: Sequence[int], offsets: Sequence[fl
         raise ValueError(f"{len(names)} joint names but " + ", ".join(bad))
     return tuple(
         JointConfig(n, int(i), float(o), int(d), float(lo), float(hi), float(v))
-        for n, i, o, d, lo, hi, v in zip(names, ids, offsets, directions, lower, upper, max_velocity)
+        for n, i, o, d, lo, hi, v in zip(names, ids, offsets, directions, lower, upper, max_velocity,
+                                         strict=True)
     )

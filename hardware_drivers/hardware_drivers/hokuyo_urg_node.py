@@ -31,7 +31,7 @@ from hardware_drivers.urg_driver import UrgConfig, UrgDriver
 
 
 class HokuyoUrgNode(Node):
-    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+    def __init__(self, **node_options) -> None:
         super().__init__("hokuyo_urg", **node_options)
         port = declare(self, "port", "/dev/ttyACM0", "serial device of the URG (a pty path works)")
         baud = int(declare(self, "baud", 115200, "baud rate tried first (then 19200, 38400, 115200)"))

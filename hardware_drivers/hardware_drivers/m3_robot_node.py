@@ -36,8 +36,6 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import JointState, LaserScan
 from std_msgs.msg import Bool
-from tiling_assembly_msgs.action import PlaceTile
-from tiling_assembly_msgs.msg import Structure as StructureMsg
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from hardware_drivers.arm_kinematics import ArmGeometry
@@ -69,6 +67,8 @@ from hardware_drivers.tile_localization import LocalizationParams, footprint_of
 from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.structure import StructureError, TileType
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.msg import Structure as StructureMsg
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                      reliability=ReliabilityPolicy.RELIABLE)
@@ -77,7 +77,7 @@ ARM_JOINTS = ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
 
 
 class M3RobotNode(Node):
-    def __init__(self, **node_options) -> None:  # noqa: ANN003 - rclpy Node options (cli_args...)
+    def __init__(self, **node_options) -> None:
         super().__init__("m3_robot", **node_options)
         self.config = self._mission_config()
         self.device_timeout = positive(self, "device_timeout", 1.0,
@@ -198,7 +198,8 @@ class M3RobotNode(Node):
         velocities = list(msg.velocity) or [0.0] * len(msg.name)
         with self._lock:
             previous = self._joint_state[1] if self._joint_state else {}
-            merged = {**previous, **{n: (p, v) for n, p, v in zip(msg.name, msg.position, velocities)}}
+            fresh = {n: (p, v) for n, p, v in zip(msg.name, msg.position, velocities, strict=False)}
+            merged = {**previous, **fresh}
             self._joint_state = (time.monotonic(), merged)
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
@@ -301,11 +302,11 @@ class M3RobotNode(Node):
             self._busy = True
         return GoalResponse.ACCEPT
 
-    def on_cancel(self, goal_handle) -> CancelResponse:  # noqa: ANN001
+    def on_cancel(self, goal_handle) -> CancelResponse:
         self.stop()  # at once; the mission notices the request within one control period
         return CancelResponse.ACCEPT
 
-    def execute(self, goal_handle) -> PlaceTile.Result:  # noqa: ANN001
+    def execute(self, goal_handle) -> PlaceTile.Result:
         request: PlaceTile.Goal = goal_handle.request
         try:
             result = self._execute(goal_handle, request)
@@ -338,7 +339,7 @@ class M3RobotNode(Node):
                 f"tile {request.tile_id} failed ({result.outcome.name}): {result.message}")
         return message
 
-    def _execute(self, goal_handle, request: PlaceTile.Goal) -> MissionResult:  # noqa: ANN001
+    def _execute(self, goal_handle, request: PlaceTile.Goal) -> MissionResult:
         with self._lock:
             tile_type = self.tile_types.get(request.tile_type)
         if tile_type is None:
@@ -382,14 +383,14 @@ class M3RobotNode(Node):
 class _GoalHardware:
     """The node's robot interface, with cancellation bound to one goal."""
 
-    def __init__(self, node: M3RobotNode, goal_handle) -> None:  # noqa: ANN001
+    def __init__(self, node: M3RobotNode, goal_handle) -> None:
         self._node = node
         self._goal_handle = goal_handle
 
     def canceled(self) -> bool:
         return bool(self._goal_handle.is_cancel_requested)
 
-    def __getattr__(self, name: str):  # noqa: ANN204 - everything else is the node's
+    def __getattr__(self, name: str):
         return getattr(self._node, name)
 
 

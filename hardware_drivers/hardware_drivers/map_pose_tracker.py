@@ -18,11 +18,11 @@ from hardware_drivers.base_navigation import PoseFusion
 from hardware_drivers.planar_pose import Pose2D
 
 
-def yaw_of(q) -> float:  # noqa: ANN001 - geometry_msgs/Quaternion
+def yaw_of(q) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
-def set_yaw(q, yaw: float) -> None:  # noqa: ANN001
+def set_yaw(q, yaw: float) -> None:
     q.x = q.y = 0.0
     q.z = math.sin(yaw / 2.0)
     q.w = math.cos(yaw / 2.0)

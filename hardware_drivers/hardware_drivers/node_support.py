@@ -13,7 +13,7 @@ from typing import Any
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException, Executor, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
@@ -129,7 +129,7 @@ def run_node(make_node: Callable[[], Node], executor: Callable[[], Executor] = S
         if on_shutdown is not None:
             try:
                 on_shutdown(node)
-            except Exception as error:  # noqa: BLE001 - e.g. publishing after Ctrl-C shut the context down
+            except Exception as error:
                 print(f"{node.get_name()}: while shutting down: {error}", file=sys.stderr)
         spinner.shutdown()
         node.destroy_node()

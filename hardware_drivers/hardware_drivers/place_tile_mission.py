@@ -35,7 +35,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from hardware_drivers.arm_kinematics import ArmGeometry, Unreachable, forward, top_down_grasp
+from hardware_drivers.arm_kinematics import ArmGeometry, UnreachableError, forward, top_down_grasp
 from hardware_drivers.base_navigation import GoToPose, GoToPoseParams, approach_pose
 from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.planar_pose import Pose2D, wrap_angle
@@ -70,7 +70,7 @@ class Outcome(IntEnum):
     CANCELED = 6
 
 
-class MissionFailure(Exception):
+class MissionFailedError(Exception):
     def __init__(self, outcome: Outcome, message: str) -> None:
         super().__init__(message)
         self.outcome = outcome
@@ -167,7 +167,7 @@ class PlaceTileMission:
         start = self.hw.now()
         try:
             placed, z = self._run(goal)
-        except MissionFailure as failure:
+        except MissionFailedError as failure:
             self.hw.stop()
             return MissionResult(failure.outcome, failure.message, duration=self.hw.now() - start)
         finally:
@@ -200,7 +200,7 @@ class PlaceTileMission:
 
         self.phase = Phase.RETREATING
         self._report(0.0)
-        self._move_arm(dict(zip(cfg.arm_joints, q_above)), "lift from the placed tile")
+        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "lift from the placed tile")
         self._move_arm(self._carry(), "carry pose")
         pose = self._pose()
         back = pose.compose(Pose2D(-cfg.retreat_distance, 0.0, 0.0))
@@ -223,14 +223,14 @@ class PlaceTileMission:
                 self._check()
                 scan = self.hw.scan_after(self.hw.now(), timeout=2.0)
                 if scan is None:
-                    raise MissionFailure(Outcome.FAILED_HARDWARE,
+                    raise MissionFailedError(Outcome.FAILED_HARDWARE,
                                          "no laser scan for 2 s while locating the tile")
                 detection = find_tile(scan, goal.footprint, cfg.localization, region)
                 if detection is not None:
                     break
                 reason = explain_no_tile(scan, goal.footprint, cfg.localization, region)
             if detection is None:
-                raise MissionFailure(
+                raise MissionFailedError(
                     Outcome.FAILED_NO_TILE,
                     f"no {goal.tile_type} found by the laser near its cache ({reason})",
                 )
@@ -250,7 +250,7 @@ class PlaceTileMission:
             stop = approach_pose(tile_map.x, tile_map.y, pose.x, pose.y, standoff)
             self.log(f"tile {reach:.2f} m from the arm at {math.degrees(bearing):.0f} deg: moving the base")
             self._drive_to(stop, "a pose within the arm's reach of the tile", report=False)
-        raise MissionFailure(
+        raise MissionFailedError(
             Outcome.FAILED_GRASP,
             f"the {goal.tile_type} stays out of the arm's reach after {cfg.max_adjustments} moves",
         )
@@ -263,27 +263,28 @@ class PlaceTileMission:
             q_above = top_down_grasp(g, tile_in_arm.x, tile_in_arm.y, grasp_z + cfg.approach_height,
                                      tile_in_arm.yaw)
             q_grasp = top_down_grasp(g, tile_in_arm.x, tile_in_arm.y, grasp_z, tile_in_arm.yaw)
-        except Unreachable as error:
-            raise MissionFailure(Outcome.FAILED_GRASP, f"tile out of the arm's reach: {error}") from None
+        except UnreachableError as error:
+            raise MissionFailedError(Outcome.FAILED_GRASP, f"tile out of the arm's reach: {error}") from None
         self._report(0.1)
-        self._move_arm({**dict(zip(cfg.arm_joints, q_above)), cfg.gripper_joint: cfg.gripper_open},
-                       "above the tile")
+        above = dict(zip(cfg.arm_joints, q_above, strict=True))
+        self._move_arm({**above, cfg.gripper_joint: cfg.gripper_open}, "above the tile")
         self._report(0.3)
-        self._move_arm(dict(zip(cfg.arm_joints, q_grasp)), "down to the tile")
+        self._move_arm(dict(zip(cfg.arm_joints, q_grasp, strict=True)), "down to the tile")
         self._report(0.5)
         gripper = self._close_gripper()
         if gripper - cfg.gripper_closed < cfg.grasp_margin:
             self._move_arm({cfg.gripper_joint: cfg.gripper_open}, "open the empty gripper")
-            raise MissionFailure(Outcome.FAILED_GRASP,
+            raise MissionFailedError(Outcome.FAILED_GRASP,
                                  "the gripper closed on nothing: the tile was not grasped")
         # the tile's yaw relative to the fingers, to place it the right way round
         offset = wrap_angle(tile_in_arm.yaw - forward(g, q_grasp).grasp_yaw())
         self._report(0.7)
-        self._move_arm(dict(zip(cfg.arm_joints, q_above)), "lift the tile")
+        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "lift the tile")
         self._move_arm(self._carry(), "carry pose")
         joints = self._joints()
         if joints[cfg.gripper_joint][0] - cfg.gripper_closed < cfg.grasp_margin:
-            raise MissionFailure(Outcome.FAILED_GRASP, "the tile slipped out of the gripper while lifting")
+            raise MissionFailedError(Outcome.FAILED_GRASP,
+                                     "the tile slipped out of the gripper while lifting")
         self._report(1.0)
         return offset
 
@@ -305,20 +306,20 @@ class PlaceTileMission:
                 q_place = top_down_grasp(g, goal_in_arm.x, goal_in_arm.y, z, yaw, allow_flip=False)
                 solution = (q_above, q_place)
                 break
-            except Unreachable as error:
+            except UnreachableError as error:
                 problems.append(str(error))
             if period >= 2.0 * math.pi - 1e-9:
                 break
         if solution is None:
-            raise MissionFailure(
+            raise MissionFailedError(
                 Outcome.FAILED_NAVIGATION,
                 f"the goal is out of the arm's reach from where the base stopped: {problems[0]}",
             )
         q_above, q_place = solution
         self._report(0.1)
-        self._move_arm(dict(zip(cfg.arm_joints, q_above)), "above the goal")
+        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "above the goal")
         self._report(0.4)
-        self._move_arm(dict(zip(cfg.arm_joints, q_place)), "down to the goal")
+        self._move_arm(dict(zip(cfg.arm_joints, q_place, strict=True)), "down to the goal")
         joints = self._joints()
         measured = forward(g, [joints[name][0] for name in cfg.arm_joints])
         pose = self._pose()
@@ -334,7 +335,7 @@ class PlaceTileMission:
 
     # ------------------------------------------------------------------ helpers
     def _carry(self) -> dict[str, float]:
-        return dict(zip(self.config.arm_joints, self.config.carry_pose))
+        return dict(zip(self.config.arm_joints, self.config.carry_pose, strict=True))
 
     def _report(self, progress: float) -> None:
         self.feedback(self.phase, max(0.0, min(1.0, progress)), self.hw.map_pose())
@@ -342,25 +343,25 @@ class PlaceTileMission:
     def _check(self) -> None:
         if self.hw.canceled():
             self.hw.stop()
-            raise MissionFailure(Outcome.CANCELED, "canceled")
+            raise MissionFailedError(Outcome.CANCELED, "canceled")
         fault = self.hw.fault()
         if fault:
             self.hw.stop()
-            raise MissionFailure(Outcome.FAILED_HARDWARE, fault)
+            raise MissionFailedError(Outcome.FAILED_HARDWARE, fault)
 
     def _wait_for_pose(self) -> Pose2D:
         """The first pose, once every device is heard from (they may still be starting up)."""
         deadline = self.hw.now() + self.config.localization_timeout
         while True:
             if self.hw.canceled():
-                raise MissionFailure(Outcome.CANCELED, "canceled")
+                raise MissionFailedError(Outcome.CANCELED, "canceled")
             pose, fault = self.hw.map_pose(), self.hw.fault()
             if pose is not None and fault is None:
                 return pose
             if self.hw.now() > deadline:
                 if fault is not None:
-                    raise MissionFailure(Outcome.FAILED_HARDWARE, fault)
-                raise MissionFailure(
+                    raise MissionFailedError(Outcome.FAILED_HARDWARE, fault)
+                raise MissionFailedError(
                     Outcome.FAILED_NAVIGATION,
                     f"no pose of the base after {self.config.localization_timeout:g} s "
                     "(needs odom and at least one overhead_pose)",
@@ -370,14 +371,14 @@ class PlaceTileMission:
     def _pose(self) -> Pose2D:
         pose = self.hw.map_pose()
         if pose is None:
-            raise MissionFailure(Outcome.FAILED_HARDWARE, "lost the base's pose (odometry stopped)")
+            raise MissionFailedError(Outcome.FAILED_HARDWARE, "lost the base's pose (odometry stopped)")
         return pose
 
     def _joints(self) -> Mapping[str, tuple[float, float]]:
         joints = self.hw.joints()
         needed = (*self.config.arm_joints, self.config.gripper_joint)
         if joints is None or any(n not in joints for n in needed):
-            raise MissionFailure(Outcome.FAILED_HARDWARE, "no fresh joint states from the arm")
+            raise MissionFailedError(Outcome.FAILED_HARDWARE, "no fresh joint states from the arm")
         return joints
 
     def _drive_to(self, goal: Pose2D, what: str, report: bool = True) -> None:
@@ -391,7 +392,7 @@ class PlaceTileMission:
             hazard = self.hw.hazard()
             if hazard:
                 self.hw.stop()
-                raise MissionFailure(Outcome.FAILED_NAVIGATION, f"stopped on the way to {what}: {hazard}")
+                raise MissionFailedError(Outcome.FAILED_NAVIGATION, f"stopped on the way to {what}: {hazard}")
             pose = self._pose()
             linear, angular, done = controller.command(pose, goal)
             if done:
@@ -399,7 +400,7 @@ class PlaceTileMission:
                 return
             if self.hw.now() > deadline:
                 self.hw.stop()
-                raise MissionFailure(
+                raise MissionFailedError(
                     Outcome.FAILED_NAVIGATION,
                     f"did not reach {what} within {cfg.navigation_timeout:g} s "
                     f"({pose.distance_to(goal) * 100:.0f} cm away)",
@@ -429,7 +430,7 @@ class PlaceTileMission:
                 return  # the gripper stopped (holding something, or it cannot open further)
             if self.hw.now() > deadline:
                 worst = max(errors, key=errors.get)
-                raise MissionFailure(
+                raise MissionFailedError(
                     Outcome.FAILED_HARDWARE,
                     f"the arm did not reach {what}: {worst} is {errors[worst]:.2f} rad off after "
                     f"{duration + cfg.arm_timeout:.1f} s",

@@ -2,7 +2,7 @@
 
 :class:`SerialPort` wraps pyserial: it opens a device path (``/dev/ttyUSB0`` or a pseudo-terminal
 path, exactly alike), reads with timeouts and turns every way a port can fail (missing path, busy,
-unplugged mid-run, I/O error) into :class:`DeviceUnavailable` with a one-line reason.
+unplugged mid-run, I/O error) into :class:`DeviceUnavailableError` with a one-line reason.
 
 :class:`SupervisedDevice` runs a driver's protocol session in a thread and keeps it alive: when
 the port is missing, the device stops answering or disappears, it reports once, closes the port and
@@ -22,11 +22,11 @@ import serial
 from hardware_drivers.device_health import DeviceHealth, EventSink, Level
 
 
-class DeviceUnavailable(Exception):
+class DeviceUnavailableError(Exception):
     """The port cannot be used: missing, busy, unplugged, I/O error."""
 
 
-class DeviceNotResponding(Exception):
+class DeviceNotRespondingError(Exception):
     """The device does not answer as its protocol says, after bounded retries."""
 
 
@@ -43,14 +43,14 @@ class SerialPort:
 
     def open(self) -> None:
         if not os.path.exists(self.path):
-            raise DeviceUnavailable(f"port {self.path} does not exist (device unplugged or off?)")
+            raise DeviceUnavailableError(f"port {self.path} does not exist (device unplugged or off?)")
         try:
             self._serial = serial.Serial(
                 self.path, self.baud, timeout=self.read_timeout, write_timeout=self.write_timeout,
                 exclusive=True,
             )
         except (serial.SerialException, OSError, ValueError) as error:
-            raise DeviceUnavailable(f"cannot open {self.path}: {_reason(error)}") from None
+            raise DeviceUnavailableError(f"cannot open {self.path}: {_reason(error)}") from None
 
     @property
     def is_open(self) -> bool:
@@ -70,11 +70,12 @@ class SerialPort:
             try:
                 self._serial.baudrate = baud
             except (serial.SerialException, OSError, ValueError, termios.error) as error:
-                raise DeviceUnavailable(f"cannot set {baud} baud on {self.path}: {_reason(error)}") from None
+                reason = _reason(error)
+                raise DeviceUnavailableError(f"cannot set {baud} baud on {self.path}: {reason}") from None
 
     def _port(self) -> serial.Serial:
         if self._serial is None:
-            raise DeviceUnavailable(f"port {self.path} is not open")
+            raise DeviceUnavailableError(f"port {self.path} is not open")
         return self._serial
 
     def read(self, timeout: float | None = None) -> bytes:
@@ -89,7 +90,7 @@ class SerialPort:
             return port.read(max(1, port.in_waiting))
         except (serial.SerialException, OSError, TypeError, ValueError, termios.error) as error:
             # TypeError/ValueError: pyserial or select on a descriptor closed under them
-            raise DeviceUnavailable(f"device on {self.path} disconnected ({_reason(error)})") from None
+            raise DeviceUnavailableError(f"device on {self.path} disconnected ({_reason(error)})") from None
 
     def write(self, data: bytes) -> None:
         port = self._port()
@@ -97,15 +98,17 @@ class SerialPort:
             try:
                 port.write(data)
             except serial.SerialTimeoutException:
-                raise DeviceNotResponding(f"write to {self.path} timed out (device not reading?)") from None
+                raise DeviceNotRespondingError(
+                    f"write to {self.path} timed out (device not reading?)") from None
             except (serial.SerialException, OSError, TypeError, termios.error) as error:
-                raise DeviceUnavailable(f"device on {self.path} disconnected ({_reason(error)})") from None
+                reason = _reason(error)
+                raise DeviceUnavailableError(f"device on {self.path} disconnected ({reason})") from None
 
     def discard_input(self) -> None:
         try:
             self._port().reset_input_buffer()
         except (serial.SerialException, OSError, TypeError, termios.error) as error:
-            raise DeviceUnavailable(f"device on {self.path} disconnected ({_reason(error)})") from None
+            raise DeviceUnavailableError(f"device on {self.path} disconnected ({_reason(error)})") from None
 
 
 def _reason(error: BaseException) -> str:
@@ -119,7 +122,7 @@ class SupervisedDevice:
     """A device session in its own thread, reconnected forever at a fixed interval.
 
     Subclasses implement :meth:`_session`: the handshake, then the work loop until
-    ``self._stopping`` is set. It raises :class:`DeviceUnavailable` or :class:`DeviceNotResponding`
+    ``self._stopping`` is set. It raises :class:`DeviceUnavailableError` or :class:`DeviceNotRespondingError`
     when the device is gone or silent; it calls :meth:`_connected` once the handshake succeeded.
     """
 
@@ -184,7 +187,7 @@ class SupervisedDevice:
             try:
                 port.open()
                 self._session(port)
-            except (DeviceUnavailable, DeviceNotResponding) as error:
+            except (DeviceUnavailableError, DeviceNotRespondingError) as error:
                 was_connected = self._connected_flag.is_set()
                 reason = str(error)
                 if was_connected:

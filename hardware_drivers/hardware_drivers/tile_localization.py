@@ -53,6 +53,9 @@ class LocalizationParams:
     outline_sample: float = 0.004  # m between checked points of the outline
 
 
+DEFAULT_PARAMS = LocalizationParams()
+
+
 @dataclass(frozen=True)
 class TileDetection:
     pose: Pose2D  # the tile frame in the laser frame
@@ -160,7 +163,7 @@ def _visible_outline(polygon: Array, pose: Pose2D, spacing: float, grazing_limit
     incidence = np.einsum("ij,ij->i", normal, -middle) / np.linalg.norm(middle, axis=1)
     # faces seen at grazing incidence return few, unreliable points: skip them
     seen = _facing(a, b, normal) & (incidence > math.cos(grazing_limit))
-    for start, end in zip(a[seen], b[seen]):
+    for start, end in zip(a[seen], b[seen], strict=True):
         count = max(2, int(np.linalg.norm(end - start) / spacing))
         t = (np.arange(count) + 0.5) / count
         samples.append(start + t[:, None] * (end - start))
@@ -171,7 +174,7 @@ def _visible_outline(polygon: Array, pose: Pose2D, spacing: float, grazing_limit
     bearing = np.arctan2(points[:, 1], points[:, 0])
     distance = np.linalg.norm(points, axis=1)
     keep = np.ones(len(points), dtype=bool)
-    for start, end in zip(a, b):
+    for start, end in zip(a, b, strict=True):
         hit = _ray_hits(bearing, start, end)
         keep &= ~(hit < distance - 1e-4)
     return points[keep]
@@ -230,7 +233,8 @@ def _yaw_starts(points: Array, polygon: Array, period: float, uniform: int) -> l
             directions.append(math.atan2(vt[0, 1], vt[0, 0]))
     edges = np.roll(polygon, -1, axis=0) - polygon
     edge_angles = np.arctan2(edges[:, 1], edges[:, 0])
-    candidates = [line - edge + turn for line in directions for edge in edge_angles for turn in (0.0, math.pi)]
+    candidates = [line - edge + turn
+                  for line in directions for edge in edge_angles for turn in (0.0, math.pi)]
     candidates += [-period / 2.0 + period * (i + 0.5) / uniform for i in range(uniform)]
     starts: list[float] = []
     for yaw in candidates:
@@ -254,7 +258,7 @@ def _refine(points: Array, polygon: Array, start: Pose2D, symmetry: int) -> tupl
     return Pose2D(float(x), float(y), float(yaw)), rms
 
 
-def fit_footprint(points: Array, polygon: Array, params: LocalizationParams = LocalizationParams(),
+def fit_footprint(points: Array, polygon: Array, params: LocalizationParams = DEFAULT_PARAMS,
                   symmetry: int | None = None) -> list[tuple[Pose2D, float]]:
     """Local optima of the footprint's pose for one cluster of points (laser at the origin), with
     their RMS point-to-outline distance, best first; one per distinct yaw start."""
@@ -328,7 +332,7 @@ def _score(scan: LaserScanData, polygon: Array, params: LocalizationParams, pose
     return TileDetection(pose, rms, points, coverage, see_through, quality), rank
 
 
-def find_tile(scan: LaserScanData, polygon: Array, params: LocalizationParams = LocalizationParams(),
+def find_tile(scan: LaserScanData, polygon: Array, params: LocalizationParams = DEFAULT_PARAMS,
               region: tuple[float, float, float] | None = None) -> TileDetection | None:
     """The best-fitting tile of outline `polygon` in the scan, or None when no cluster fits.
 
@@ -342,7 +346,7 @@ def find_tile(scan: LaserScanData, polygon: Array, params: LocalizationParams = 
     return max(accepted, key=lambda d: d.quality, default=None)
 
 
-def explain_no_tile(scan: LaserScanData, polygon: Array, params: LocalizationParams = LocalizationParams(),
+def explain_no_tile(scan: LaserScanData, polygon: Array, params: LocalizationParams = DEFAULT_PARAMS,
                     region: tuple[float, float, float] | None = None) -> str:
     """One line saying why find_tile found nothing (for the failure message)."""
     candidates = _candidate_fits(scan, polygon, params, region)

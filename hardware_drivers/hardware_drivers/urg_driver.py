@@ -27,7 +27,7 @@ from hardware_drivers import scip
 from hardware_drivers.device_health import EventSink, Level
 from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.scip import ScipError, SensorParameters
-from hardware_drivers.serial_link import DeviceNotResponding, SerialPort, SupervisedDevice
+from hardware_drivers.serial_link import DeviceNotRespondingError, SerialPort, SupervisedDevice
 
 CANDIDATE_BAUDS = (19200, 38400, 115200)
 
@@ -117,7 +117,7 @@ class UrgDriver(SupervisedDevice):
             reply = self._request(port, "QT")
             if reply is not None and reply.status == b"00":
                 return baud
-        raise DeviceNotResponding(
+        raise DeviceNotRespondingError(
             f"no SCIP reply on {self.path} at {', '.join(str(b) for b in bauds)} baud: "
             "is the URG connected and powered?"
         )
@@ -127,11 +127,11 @@ class UrgDriver(SupervisedDevice):
         baud = self._find_protocol(port)
         pp = self._request(port, "PP")
         if pp is None or pp.status != b"00":
-            raise DeviceNotResponding("the URG did not answer PP (sensor parameters)")
+            raise DeviceNotRespondingError("the URG did not answer PP (sensor parameters)")
         try:
             parameters = SensorParameters.from_pp(scip.parse_parameters(pp))
         except ScipError as error:
-            raise DeviceNotResponding(f"bad PP reply: {error}") from None
+            raise DeviceNotRespondingError(f"bad PP reply: {error}") from None
         self.parameters = parameters
         vv = self._request(port, "VV")
         if vv is not None and vv.status == b"00":
@@ -142,14 +142,14 @@ class UrgDriver(SupervisedDevice):
         bm = self._request(port, "BM")
         if bm is None or bm.status not in (b"00", b"02"):
             status = "no reply" if bm is None else f"status {bm.status.decode('ascii', 'replace')}"
-            raise DeviceNotResponding(f"the URG could not switch its laser on (BM: {status})")
+            raise DeviceNotRespondingError(f"the URG could not switch its laser on (BM: {status})")
         md_text = (
             f"MD{parameters.amin:04d}{parameters.amax:04d}{self.config.cluster:02d}{self.config.skip:01d}00"
         )
         md = self._request(port, md_text)
         if md is None or md.status != b"00":
             status = "no reply" if md is None else f"status {md.status.decode('ascii', 'replace')}"
-            raise DeviceNotResponding(f"the URG refused continuous scanning ({md_text}: {status})")
+            raise DeviceNotRespondingError(f"the URG refused continuous scanning ({md_text}: {status})")
         for key, value in (("model", parameters.model), ("baud", baud),
                            ("firmware", self._version.get("FIRM", "?")),
                            ("steps", f"{parameters.amin}..{parameters.amax} of {parameters.ares}")):
@@ -161,7 +161,7 @@ class UrgDriver(SupervisedDevice):
         self._stream(port, parameters, md_text.encode("ascii"))
         try:
             port.write(scip.command("QT"))  # leave the laser off when we stop
-        except Exception:  # noqa: BLE001 - best effort on the way out
+        except Exception:
             pass
 
     # ------------------------------------------------------------------ scans
@@ -188,9 +188,9 @@ class UrgDriver(SupervisedDevice):
                                           f"URG scan dropped: {problem}", set_state=True)
                         last_fault = problem
                     if bad_in_a_row >= self.config.error_limit:
-                        raise DeviceNotResponding(f"{bad_in_a_row} bad scans in a row (last: {problem})")
+                        raise DeviceNotRespondingError(f"{bad_in_a_row} bad scans in a row (last: {problem})")
             if now - last_scan > self.config.scan_timeout:
-                raise DeviceNotResponding(f"no scan for {self.config.scan_timeout:g} s")
+                raise DeviceNotRespondingError(f"no scan for {self.config.scan_timeout:g} s")
             self.health.set_counter("dropped_bytes", self._splitter.dropped_bytes)
 
     def _handle_block(self, block: bytes, parameters: SensorParameters, md_echo: bytes, expected: int,

@@ -26,20 +26,20 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from processes import REPO, Emulator  # noqa: E402
-from test_tile_localization import scan_of, symmetric_yaw_error  # noqa: E402
+from processes import REPO, Emulator
+from test_tile_localization import scan_of, symmetric_yaw_error
 
-from hardware_drivers.create_driver import CreateConfig, CreateDriver  # noqa: E402
-from hardware_drivers.dynamixel_driver import ArmConfig, ArmDriver, JointConfig  # noqa: E402
-from hardware_drivers.planar_pose import Pose2D  # noqa: E402
-from hardware_drivers.tile_localization import find_tile, footprint_of, rotational_symmetry  # noqa: E402
-from hardware_drivers.urg_driver import UrgConfig, UrgDriver  # noqa: E402
-from tiling_assembly.structure_file import load_structure  # noqa: E402
+from hardware_drivers.create_driver import CreateConfig, CreateDriver
+from hardware_drivers.dynamixel_driver import ArmConfig, ArmDriver, JointConfig
+from hardware_drivers.planar_pose import Pose2D
+from hardware_drivers.tile_localization import find_tile, footprint_of, rotational_symmetry
+from hardware_drivers.urg_driver import UrgConfig, UrgDriver
+from tiling_assembly.structure_file import load_structure
 
 
 def summary(values: list[float], unit: str, scale: float = 1.0) -> str:
     ordered = sorted(v * scale for v in values)
-    p95 = ordered[min(len(ordered) - 1, int(round(0.95 * (len(ordered) - 1))))]
+    p95 = ordered[min(len(ordered) - 1, round(0.95 * (len(ordered) - 1)))]
     return (f"median {statistics.median(ordered):.2f} {unit}, 95th {p95:.2f} {unit}, "
             f"max {ordered[-1]:.2f} {unit} (n={len(ordered)})")
 
@@ -67,7 +67,8 @@ def localization_synthetic(trials: int) -> None:
             yaw_errors.append(symmetric_yaw_error(detection.pose.yaw, truth.yaw, symmetry))
         all_errors += errors
         print(f"   {name:15s} position {summary(errors, 'mm', 1000)}; yaw median "
-              f"{math.degrees(statistics.median(yaw_errors)):.1f} deg, max {math.degrees(max(yaw_errors)):.1f} deg; "
+              f"{math.degrees(statistics.median(yaw_errors)):.1f} deg, "
+              f"max {math.degrees(max(yaw_errors)):.1f} deg; "
               f"{statistics.median(times) * 1000:.0f} ms per scan")
     print(f"   all types: position {summary(all_errors, 'mm', 1000)}; not found: {misses}")
 
@@ -75,7 +76,8 @@ def localization_synthetic(trials: int) -> None:
 def localization_through_the_driver(directory: Path, poses: int) -> None:
     print("1b. tile localization through the URG driver and the URG emulator (noise sigma 3 mm)")
     rectangle = np.array([[-0.085, -0.02], [0.085, -0.02], [0.085, 0.02], [-0.085, 0.02]])
-    emulator = Emulator("urg", directory / "urg_loc", "--baud", "0", "--noise", "0.003", "--tile-pose", "0.3,0,0")
+    emulator = Emulator("urg", directory / "urg_loc", "--baud", "0", "--noise", "0.003",
+                        "--tile-pose", "0.3,0,0")
     driver = UrgDriver(UrgConfig(port=str(directory / "urg_loc")))
     driver.start()
     rng = np.random.default_rng(7)

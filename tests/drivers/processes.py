@@ -95,7 +95,7 @@ class NodeProcess:
                  params_files: tuple[str, ...] = ("config/hardware_drivers.yaml",)) -> None:
         self.name = executable_name
         self.log_path = log_dir / f"{executable_name}.log"
-        self._log = open(self.log_path, "w")  # noqa: SIM115 - closed in stop()
+        self._log = open(self.log_path, "w")
         command = [*executable(executable_name), "--ros-args", "-r", f"__ns:={namespace}"]
         for params_file in params_files:
             command += ["--params-file", str(REPO / params_file)]

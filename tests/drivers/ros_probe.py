@@ -74,7 +74,7 @@ class RosProbe:
         self.node.create_subscription(message_type, topic, collector.add, qos)
         return collector
 
-    def publisher(self, message_type: Any, topic: str, qos: QoSProfile | int = 10):  # noqa: ANN201
+    def publisher(self, message_type: Any, topic: str, qos: QoSProfile | int = 10):
         return self.node.create_publisher(message_type, topic, qos)
 
     def close(self) -> None:

@@ -13,7 +13,7 @@ from hardware_drivers.arm_kinematics import (
     DOWN,
     ArmGeometry,
     ToolPose,
-    Unreachable,
+    UnreachableError,
     forward,
     inverse,
     tool_rotation,
@@ -37,20 +37,21 @@ def test_stretched_out_arm() -> None:
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.tuples(*(st.floats(lo, hi) for lo, hi in zip(GEOMETRY.lower, GEOMETRY.upper))))
+@given(st.tuples(*(st.floats(lo, hi) for lo, hi in zip(GEOMETRY.lower, GEOMETRY.upper, strict=True))))
 def test_forward_of_inverse_is_the_pose(joints: tuple[float, ...]) -> None:
     pose = forward(GEOMETRY, joints)
     try:
         solution = inverse(GEOMETRY, pose)
-    except Unreachable:
+    except UnreachableError:
         return  # the pose needs the other base yaw branch or a joint beyond its limit
-    assert all(lo - 1e-9 <= q <= hi + 1e-9 for q, lo, hi in zip(solution, GEOMETRY.lower, GEOMETRY.upper))
+    limits = zip(solution, GEOMETRY.lower, GEOMETRY.upper, strict=True)
+    assert all(lo - 1e-9 <= q <= hi + 1e-9 for q, lo, hi in limits)
     assert_same_pose(forward(GEOMETRY, solution), pose)
 
 
 @settings(max_examples=200, deadline=None)
 @given(st.floats(0.12, 0.27), st.floats(-1.2, 1.2), st.floats(-0.06, 0.04), st.floats(-math.pi, math.pi))
-def test_top_down_grasps_reach_the_floor_in_front_of_the_arm(reach, bearing, z, yaw) -> None:  # noqa: ANN001
+def test_top_down_grasps_reach_the_floor_in_front_of_the_arm(reach, bearing, z, yaw) -> None:
     x, y = reach * math.cos(bearing), reach * math.sin(bearing)
     joints = top_down_grasp(GEOMETRY, x, y, z, yaw)
     pose = forward(GEOMETRY, joints)
@@ -72,12 +73,12 @@ def test_an_exact_grasp_yaw_is_kept_when_flipping_is_not_allowed() -> None:
 
 
 def test_unreachable_poses_say_why() -> None:
-    with pytest.raises(Unreachable, match="outside the arm's reach"):
+    with pytest.raises(UnreachableError, match="outside the arm's reach"):
         top_down_grasp(GEOMETRY, 0.6, 0.0, 0.0, 0.0)
-    with pytest.raises(Unreachable, match="base's axis"):
+    with pytest.raises(UnreachableError, match="base's axis"):
         inverse(GEOMETRY, ToolPose(0.0, 0.0, 0.1, DOWN, 0.0))
     narrow = ArmGeometry(lower=(-2.6, -1.6, -2.6, -0.1, -2.6), upper=(2.6, 2.0, 2.6, 0.1, 2.6))
-    with pytest.raises(Unreachable, match="wrist_pitch"):
+    with pytest.raises(UnreachableError, match="wrist_pitch"):
         top_down_grasp(narrow, 0.2, 0.0, 0.0, 0.0)
 
 

@@ -10,9 +10,9 @@ import pytest
 
 from hardware_drivers.base_navigation import GoToPose, GoToPoseParams, PoseFusion, approach_pose
 from hardware_drivers.differential_odometry import (
+    CREATE2_WHEELS,
     DifferentialOdometry,
     EncoderOdometry,
-    CREATE2_WHEELS,
     encoder_delta,
     wheel_speeds,
 )

@@ -31,7 +31,7 @@ class Events:
         raise AssertionError(f"no event containing '{text}' within {timeout} s; events: {self.items}")
 
 
-def wait_until(condition, timeout: float = 5.0, what: str = "the condition") -> None:  # noqa: ANN001
+def wait_until(condition, timeout: float = 5.0, what: str = "the condition") -> None:
     deadline = time.monotonic() + timeout
     while not condition():
         assert time.monotonic() < deadline, f"{what} did not happen within {timeout} s"
@@ -46,7 +46,7 @@ def drive_for(driver: CreateDriver, linear: float, angular: float, seconds: floa
 
 
 @pytest.fixture
-def rig(tmp_path: Path):  # noqa: ANN201
+def rig(tmp_path: Path):
     emulator = Emulator("create", tmp_path / "create")
     events = Events()
     driver = CreateDriver(CreateConfig(port=str(tmp_path / "create")), on_event=events)
@@ -57,7 +57,7 @@ def rig(tmp_path: Path):  # noqa: ANN201
     emulator.close()
 
 
-def test_odometry_follows_the_emulated_base(rig) -> None:  # noqa: ANN001
+def test_odometry_follows_the_emulated_base(rig) -> None:
     emulator, driver, _ = rig
     drive_for(driver, 0.25, 0.8, 1.5)
     drive_for(driver, 0.0, 0.0, 0.3)
@@ -69,7 +69,7 @@ def test_odometry_follows_the_emulated_base(rig) -> None:  # noqa: ANN001
     assert state.voltage == pytest.approx(15.8) and state.charge == pytest.approx(2.5)
 
 
-def test_commands_are_clamped_and_the_watchdog_stops_the_wheels(rig) -> None:  # noqa: ANN001
+def test_commands_are_clamped_and_the_watchdog_stops_the_wheels(rig) -> None:
     emulator, driver, events = rig
     right, left = driver.drive(5.0, 0.0)  # far beyond the limits
     assert right == left == pytest.approx(0.3)  # max_linear
@@ -84,7 +84,7 @@ def test_commands_are_clamped_and_the_watchdog_stops_the_wheels(rig) -> None:  #
     assert driver.health.counter("watchdog_stops") >= 1
 
 
-def test_a_bump_stops_the_wheels_and_allows_only_backing_away(rig) -> None:  # noqa: ANN001
+def test_a_bump_stops_the_wheels_and_allows_only_backing_away(rig) -> None:
     emulator, driver, events = rig
     driver.drive(0.2, 0.0)
     emulator.wait_for("drive 200 200")
@@ -100,7 +100,7 @@ def test_a_bump_stops_the_wheels_and_allows_only_backing_away(rig) -> None:  # n
     assert driver.drive(0.1, 0.0) == pytest.approx((0.1, 0.1))
 
 
-def test_a_wheel_drop_stops_the_wheels(rig) -> None:  # noqa: ANN001
+def test_a_wheel_drop_stops_the_wheels(rig) -> None:
     emulator, driver, events = rig
     driver.drive(0.2, 0.0)
     emulator.wait_for("drive 200 200")
@@ -111,7 +111,7 @@ def test_a_wheel_drop_stops_the_wheels(rig) -> None:  # noqa: ANN001
     emulator.send("drop none")
 
 
-def test_garbage_partial_and_corrupt_frames_are_counted_and_skipped(rig) -> None:  # noqa: ANN001
+def test_garbage_partial_and_corrupt_frames_are_counted_and_skipped(rig) -> None:
     emulator, driver, _ = rig
     emulator.send("garbage 200")
     emulator.send("partial")
@@ -124,7 +124,7 @@ def test_garbage_partial_and_corrupt_frames_are_counted_and_skipped(rig) -> None
     assert driver.health.counter("disconnects") == 0
 
 
-def test_a_silent_robot_is_reported_and_reconnected(rig) -> None:  # noqa: ANN001
+def test_a_silent_robot_is_reported_and_reconnected(rig) -> None:
     emulator, driver, events = rig
     emulator.send("silence 1.0")
     events.wait_for("no valid sensor frame for 0.5 s (robot off or asleep?)", 3.0)
@@ -132,7 +132,7 @@ def test_a_silent_robot_is_reported_and_reconnected(rig) -> None:  # noqa: ANN00
     assert driver.connected
 
 
-def test_an_unplugged_robot_is_reported_and_reconnected(rig) -> None:  # noqa: ANN001
+def test_an_unplugged_robot_is_reported_and_reconnected(rig) -> None:
     emulator, driver, events = rig
     emulator.send("unplug 1.0")
     events.wait_for("iRobot Create lost: device on", 3.0)

@@ -62,7 +62,7 @@ class Diagnostics:
 
 
 @pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
+def rig(tmp_path_factory: pytest.TempPathFactory):
     directory = tmp_path_factory.mktemp("nodes")
     probe = shared_probe()
     diagnostics = Diagnostics()
@@ -98,7 +98,7 @@ def rig(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
         assert codes[name] == 0, f"{name} exited with {codes[name]}:\n{node.log()}"
 
 
-def test_base_port_missing_at_start_is_reported_once_then_connected(rig) -> None:  # noqa: ANN001
+def test_base_port_missing_at_start_is_reported_once_then_connected(rig) -> None:
     node = rig["nodes"]["create_base"]
     node.wait_for_log("does not exist (device unplugged or off?); retrying every 0.5 s")
     status = rig["diagnostics"].wait_for("create_base", lambda s: "does not exist" in s.message)
@@ -111,7 +111,7 @@ def test_base_port_missing_at_start_is_reported_once_then_connected(rig) -> None
     rig["diagnostics"].wait_for("create_base", lambda s: level(s) == OK and "connected to" in s.message)
 
 
-def test_cmd_vel_moves_the_base_and_odometry_follows(rig) -> None:  # noqa: ANN001
+def test_cmd_vel_moves_the_base_and_odometry_follows(rig) -> None:
     emulator = rig["create"]
     rig["odom"].wait_for(lambda m: True, 10.0, "odometry")
     publisher = rig["cmd_vel"]
@@ -143,7 +143,7 @@ def test_cmd_vel_moves_the_base_and_odometry_follows(rig) -> None:  # noqa: ANN0
     assert battery.voltage == pytest.approx(15.8) and 0.8 < battery.percentage < 0.9
 
 
-def test_bump_and_serial_faults_on_the_base_are_diagnosed_and_survived(rig) -> None:  # noqa: ANN001
+def test_bump_and_serial_faults_on_the_base_are_diagnosed_and_survived(rig) -> None:
     emulator, node, diagnostics = rig["create"], rig["nodes"]["create_base"], rig["diagnostics"]
     emulator.send("bump right")
     rig["bumper"].wait_for(lambda m: m.data, 3.0, "bumper pressed")
@@ -162,7 +162,7 @@ def test_bump_and_serial_faults_on_the_base_are_diagnosed_and_survived(rig) -> N
     rig["odom"].wait_for(lambda m: True, 3.0, "odometry after the reconnect", after=time.monotonic())
 
 
-def test_a_joint_goal_is_reached_and_reported(rig) -> None:  # noqa: ANN001
+def test_a_joint_goal_is_reached_and_reported(rig) -> None:
     joints = rig["joints"].wait_for(lambda m: len(m.name) == 6, 10.0, "joint states")
     assert list(joints.name) == ["base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll", "gripper"]
     trajectory = JointTrajectory()
@@ -176,7 +176,7 @@ def test_a_joint_goal_is_reached_and_reported(rig) -> None:  # noqa: ANN001
     publisher.publish(trajectory)
 
     def at(message: JointState, shoulder: float, elbow: float) -> bool:
-        position = dict(zip(message.name, message.position))
+        position = dict(zip(message.name, message.position, strict=False))
         return abs(position["shoulder"] - shoulder) < 0.02 and abs(position["elbow"] - elbow) < 0.02
 
     rig["joints"].wait_for(lambda m: at(m, 0.4, -0.3), 5.0, "the first point")
@@ -195,7 +195,7 @@ def test_a_joint_goal_is_reached_and_reported(rig) -> None:  # noqa: ANN001
     rig["joints"].wait_for(lambda m: at(m, 0.0, 0.0), 5.0, "the home pose")
 
 
-def test_a_joint_error_is_diagnosed_and_torque_re_enabled(rig) -> None:  # noqa: ANN001
+def test_a_joint_error_is_diagnosed_and_torque_re_enabled(rig) -> None:
     arm, diagnostics = rig["arm"], rig["diagnostics"]
     arm.send("error 2 overheat")
     status = diagnostics.wait_for("crustcrawler_arm", lambda s: "shoulder: overheating" in s.message)
@@ -214,7 +214,7 @@ def test_a_joint_error_is_diagnosed_and_torque_re_enabled(rig) -> None:  # noqa:
     arm.wait_for("torque 2 1", 2.0)
 
 
-def test_a_scan_of_a_known_tile_gives_its_pose_within_a_centimetre(rig) -> None:  # noqa: ANN001
+def test_a_scan_of_a_known_tile_gives_its_pose_within_a_centimetre(rig) -> None:
     message = rig["scans"].wait_for(lambda m: True, 10.0, "a scan")
     assert message.header.frame_id == "laser"
     assert message.angle_min == pytest.approx((44 - 384) * 2 * math.pi / 1024, abs=1e-6)
@@ -228,7 +228,7 @@ def test_a_scan_of_a_known_tile_gives_its_pose_within_a_centimetre(rig) -> None:
     assert abs(math.remainder(detection.pose.yaw - TILE.yaw, math.pi)) < math.radians(5)
 
 
-def test_corrupt_scans_are_counted_on_diagnostics(rig) -> None:  # noqa: ANN001
+def test_corrupt_scans_are_counted_on_diagnostics(rig) -> None:
     rig["urg"].send("corrupt 3")
     status = rig["diagnostics"].wait_for("hokuyo_urg",
                                          lambda s: int(values(s).get("corrupt_scans", "0")) >= 3)

@@ -28,7 +28,7 @@ def joints() -> tuple[JointConfig, ...]:
 
 
 @pytest.fixture
-def rig(tmp_path: Path):  # noqa: ANN201
+def rig(tmp_path: Path):
     emulator = Emulator("dynamixel", tmp_path / "arm", "--stall", f"6:{dx.radians_to_position(-0.3)}")
     events = Events()
     driver = ArmDriver(ArmConfig(port=str(tmp_path / "arm"), joints=joints()), on_event=events)
@@ -45,7 +45,7 @@ def positions(driver: ArmDriver) -> dict[str, float]:
     return {n: r.position for n, r in driver.readings()[1].items()}
 
 
-def test_a_goal_is_reached_at_the_planned_speed_and_reported(rig) -> None:  # noqa: ANN001
+def test_a_goal_is_reached_at_the_planned_speed_and_reported(rig) -> None:
     emulator, driver, _ = rig
     before = positions(driver)
     assert before["shoulder"] == pytest.approx(0.2, abs=0.01)  # the servo at its centre
@@ -66,7 +66,7 @@ def test_a_goal_is_reached_at_the_planned_speed_and_reported(rig) -> None:  # no
     assert reading.voltage == 12.0 and reading.temperature == 35.0 and reading.errors == ()
 
 
-def test_goals_outside_the_limits_or_for_unknown_joints_are_refused(rig) -> None:  # noqa: ANN001
+def test_goals_outside_the_limits_or_for_unknown_joints_are_refused(rig) -> None:
     _, driver, _ = rig
     with pytest.raises(JointGoalError, match=r"goal 1.700 rad for joint elbow is outside its limits"):
         driver.set_goals({"elbow": 1.7})
@@ -74,7 +74,7 @@ def test_goals_outside_the_limits_or_for_unknown_joints_are_refused(rig) -> None
         driver.set_goals({"knee": 0.0})
 
 
-def test_the_gripper_stops_on_an_object(rig) -> None:  # noqa: ANN001
+def test_the_gripper_stops_on_an_object(rig) -> None:
     _, driver, _ = rig
     driver.set_goals({"gripper": -1.2})
     def closed() -> bool:
@@ -85,7 +85,7 @@ def test_the_gripper_stops_on_an_object(rig) -> None:  # noqa: ANN001
     assert driver.readings()[1]["gripper"].load < -0.3  # squeezing
 
 
-def test_a_joint_error_is_reported_and_torque_can_be_re_enabled(rig) -> None:  # noqa: ANN001
+def test_a_joint_error_is_reported_and_torque_can_be_re_enabled(rig) -> None:
     emulator, driver, events = rig
     emulator.send("error 3 overload")
     events.wait_for("joint elbow (id 3) reports: overload")
@@ -100,7 +100,7 @@ def test_a_joint_error_is_reported_and_torque_can_be_re_enabled(rig) -> None:  #
     emulator.wait_for("torque 3 1", 2.0)
 
 
-def test_a_silent_joint_is_retried_reported_and_recovered(rig) -> None:  # noqa: ANN001
+def test_a_silent_joint_is_retried_reported_and_recovered(rig) -> None:
     emulator, driver, events = rig
     emulator.send("mute 4 on")
     events.wait_for("joint wrist_pitch (id 4) stopped answering (3 tries of 30 ms)")
@@ -111,7 +111,7 @@ def test_a_silent_joint_is_retried_reported_and_recovered(rig) -> None:  # noqa:
     events.wait_for("joint wrist_pitch (id 4) answers again")
 
 
-def test_corrupt_replies_and_garbage_are_retried(rig) -> None:  # noqa: ANN001
+def test_corrupt_replies_and_garbage_are_retried(rig) -> None:
     emulator, driver, _ = rig
     emulator.send("corrupt 4")
     emulator.send("garbage 100")
@@ -122,7 +122,7 @@ def test_corrupt_replies_and_garbage_are_retried(rig) -> None:  # noqa: ANN001
     assert not driver.health.snapshot().message.startswith("joint faults")
 
 
-def test_an_unplugged_bus_is_reconnected(rig) -> None:  # noqa: ANN001
+def test_an_unplugged_bus_is_reconnected(rig) -> None:
     emulator, driver, events = rig
     emulator.send("unplug 0.8")
     events.wait_for("CrustCrawler arm lost", 3.0)

@@ -104,7 +104,7 @@ def declared_parameters(node_class: type) -> set[str]:
     node = node_class(cli_args=["--ros-args", *[a for f in files for a in ("--params-file", f)],
                                 "-p", "port:=/nonexistent/port"])
     try:
-        return set(node._parameters)  # noqa: SLF001 - what the node declared
+        return set(node._parameters)
     finally:
         if hasattr(node, "shutdown"):
             node.shutdown()

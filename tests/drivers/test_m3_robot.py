@@ -20,10 +20,10 @@ from processes import Emulator, NodeProcess
 from rclpy.action import ActionClient
 from rclpy.time import Time
 from ros_probe import shared_probe
-from tiling_assembly_msgs.action import PlaceTile
 
 from hardware_drivers import dynamixel_protocol as dx
 from hardware_drivers.place_tile_mission import Outcome, Phase
+from tiling_assembly_msgs.action import PlaceTile
 
 pytestmark = pytest.mark.ros
 
@@ -67,7 +67,7 @@ class OverheadCamera:
 
 
 @pytest.fixture(scope="module")
-def m3(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
+def m3(tmp_path_factory: pytest.TempPathFactory):
     directory = tmp_path_factory.mktemp("m3")
     pose_file = directory / "true_pose"
     create = Emulator("create", directory / "create", "--pose-file", str(pose_file),
@@ -136,7 +136,7 @@ def _run_goal(client: ActionClient, goal: PlaceTile.Goal, timeout: float,
     return result_future.result().result, feedback, canceled_at
 
 
-def test_place_tile_completes_against_the_emulators(m3) -> None:  # noqa: ANN001
+def test_place_tile_completes_against_the_emulators(m3) -> None:
     result, feedback, _ = _run_goal(m3["client"], _goal(), timeout=120.0)
     assert result.error_code == PlaceTile.Result.SUCCEEDED, result.message
     assert result.message == ""
@@ -165,7 +165,7 @@ def test_place_tile_completes_against_the_emulators(m3) -> None:  # noqa: ANN001
     assert drives and drives[-1].startswith("drive 0 0")
 
 
-def test_no_tile_at_the_cache_fails_with_no_tile(m3) -> None:  # noqa: ANN001
+def test_no_tile_at_the_cache_fails_with_no_tile(m3) -> None:
     m3["urg"].send("tile none")
     m3["urg"].wait_for("tile none")
     try:
@@ -179,11 +179,11 @@ def test_no_tile_at_the_cache_fails_with_no_tile(m3) -> None:  # noqa: ANN001
     assert Outcome.FAILED_NO_TILE == PlaceTile.Result.FAILED_NO_TILE
 
 
-def test_cancel_stops_the_wheels(m3) -> None:  # noqa: ANN001
+def test_cancel_stops_the_wheels(m3) -> None:
     goal = _goal()
     goal.cache.x, goal.cache.y = 1.5, 1.5  # far away: the cancel comes while driving
     m3["create"].drain()
-    result, feedback, canceled_at = _run_goal(m3["client"], goal, timeout=60.0,
+    result, _, canceled_at = _run_goal(m3["client"], goal, timeout=60.0,
                                               cancel_in_phase=Phase.DRIVING_TO_CACHE)
     assert canceled_at is not None
     assert result.error_code == PlaceTile.Result.CANCELED
@@ -197,7 +197,7 @@ def test_cancel_stops_the_wheels(m3) -> None:  # noqa: ANN001
     assert after[-1][0] - canceled_at < 2.0
 
 
-def test_a_device_that_stops_answering_fails_with_hardware_error(m3) -> None:  # noqa: ANN001
+def test_a_device_that_stops_answering_fails_with_hardware_error(m3) -> None:
     m3["arm"].send("unplug 0")
     m3["nodes"]["crustcrawler_arm"].wait_for_log("CrustCrawler arm lost", timeout=10.0)
     try:

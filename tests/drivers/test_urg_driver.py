@@ -21,7 +21,7 @@ RECTANGLE = np.array([[-0.085, -0.02], [0.085, -0.02], [0.085, 0.02], [-0.085, 0
 
 
 @pytest.fixture
-def rig(tmp_path: Path):  # noqa: ANN201
+def rig(tmp_path: Path):
     # an RS-232 URG-04LX in SCIP 1.1 at 19200 baud; the driver starts at 115200
     emulator = Emulator("urg", tmp_path / "urg", "--scip", "1.1", "--baud", "19200",
                         "--tile-pose", f"{TILE.x},{TILE.y},{TILE.yaw}", "--segments", "1.2,-3,1.2,3")
@@ -35,7 +35,7 @@ def rig(tmp_path: Path):  # noqa: ANN201
     emulator.close()
 
 
-def test_connects_through_the_baud_search_and_the_scip_switch(rig) -> None:  # noqa: ANN001
+def test_connects_through_the_baud_search_and_the_scip_switch(rig) -> None:
     emulator, driver, events = rig
     events.wait_for("from SCIP 1.1 to SCIP 2.0")
     assert emulator.lines and any(text == "scip 2.0" for _, text in emulator.lines)
@@ -44,7 +44,7 @@ def test_connects_through_the_baud_search_and_the_scip_switch(rig) -> None:  # n
     assert "URG-04LX, 19200 baud, steps 44..725, 600 rpm" in events.wait_for("connected to the Hokuyo URG")
 
 
-def test_scans_have_the_sensor_geometry_and_show_the_tile(rig) -> None:  # noqa: ANN001
+def test_scans_have_the_sensor_geometry_and_show_the_tile(rig) -> None:
     _, driver, _ = rig
     _, scan = driver.latest_scan()
     assert len(scan.ranges) == 725 - 44 + 1
@@ -60,7 +60,7 @@ def test_scans_have_the_sensor_geometry_and_show_the_tile(rig) -> None:  # noqa:
     assert abs(math.remainder(detection.pose.yaw - TILE.yaw, math.pi)) < math.radians(5)
 
 
-def test_a_scan_with_a_bad_line_is_dropped_and_counted(rig) -> None:  # noqa: ANN001
+def test_a_scan_with_a_bad_line_is_dropped_and_counted(rig) -> None:
     emulator, driver, events = rig
     emulator.send("corrupt 2")
     events.wait_for("URG scan dropped: checksum error")
@@ -70,7 +70,7 @@ def test_a_scan_with_a_bad_line_is_dropped_and_counted(rig) -> None:  # noqa: AN
     assert driver.health.counter("disconnects") == 0
 
 
-def test_partial_scans_and_garbage_are_dropped(rig) -> None:  # noqa: ANN001
+def test_partial_scans_and_garbage_are_dropped(rig) -> None:
     emulator, driver, _ = rig
     emulator.send("partial")
     emulator.send("garbage 150")
@@ -79,7 +79,7 @@ def test_partial_scans_and_garbage_are_dropped(rig) -> None:  # noqa: ANN001
     wait_until(lambda: driver.health.counter("scans") > scans + 2, what="valid scans after")
 
 
-def test_a_hardware_fault_reconnects_after_the_error_limit(rig) -> None:  # noqa: ANN001
+def test_a_hardware_fault_reconnects_after_the_error_limit(rig) -> None:
     emulator, driver, events = rig
     emulator.send("fault 55")
     events.wait_for("URG reports hardware fault (status 55)", 3.0)
@@ -90,14 +90,14 @@ def test_a_hardware_fault_reconnects_after_the_error_limit(rig) -> None:  # noqa
     wait_until(lambda: driver.health.counter("scans") > scans, what="scans after the reconnect")
 
 
-def test_an_unplugged_sensor_is_reconnected(rig) -> None:  # noqa: ANN001
+def test_an_unplugged_sensor_is_reconnected(rig) -> None:
     emulator, driver, events = rig
     emulator.send("unplug 0.8")
     events.wait_for("Hokuyo URG lost", 3.0)
     wait_until(lambda: driver.health.counter("connects") >= 2, 8.0, "the reconnect")
 
 
-def test_silence_is_a_lost_sensor(rig) -> None:  # noqa: ANN001
+def test_silence_is_a_lost_sensor(rig) -> None:
     emulator, driver, events = rig
     emulator.send("silence 1.5")
     events.wait_for("no scan for 1 s", 3.0)

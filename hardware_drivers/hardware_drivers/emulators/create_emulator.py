@@ -26,7 +26,7 @@ import sys
 import time
 
 from hardware_drivers import create_oi
-from hardware_drivers.create_oi import Hazards, Opcode, OIMode, PacketId
+from hardware_drivers.create_oi import Hazards, OIMode, Opcode, PacketId
 from hardware_drivers.differential_odometry import CREATE1_WHEELS, CREATE2_WHEELS
 from hardware_drivers.emulators.pty_device import EmulatorApp, common_arguments, run_emulator
 
@@ -102,11 +102,11 @@ class CreateEmulator(EmulatorApp):
         values: dict[int, int] = {}
         for packet_id in ids:
             if packet_id == PacketId.DISTANCE:
-                reported = int(round(self.distance_mm))
+                reported = round(self.distance_mm)
                 self.distance_mm -= reported
                 values[packet_id] = max(-32768, min(32767, reported))
             elif packet_id == PacketId.ANGLE:
-                reported = int(round(self.angle_deg))
+                reported = round(self.angle_deg)
                 self.angle_deg -= reported
                 values[packet_id] = max(-32768, min(32767, reported))
             elif packet_id == PacketId.BUMPS_WHEEL_DROPS:
@@ -126,9 +126,9 @@ class CreateEmulator(EmulatorApp):
             elif packet_id == PacketId.OI_MODE:
                 values[packet_id] = int(self.mode)
             elif packet_id == PacketId.LEFT_ENCODER:
-                values[packet_id] = int(math.floor(self.left_ticks)) % 65536
+                values[packet_id] = math.floor(self.left_ticks) % 65536
             elif packet_id == PacketId.RIGHT_ENCODER:
-                values[packet_id] = int(math.floor(self.right_ticks)) % 65536
+                values[packet_id] = math.floor(self.right_ticks) % 65536
         return values
 
     def send_frame(self) -> None:
