@@ -4,15 +4,19 @@ what the driver nodes publish and publishes what they consume."""
 from __future__ import annotations
 
 import atexit
+import math
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 import rclpy
+from geometry_msgs.msg import PoseStamped
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from rclpy.time import Time
 
 T = TypeVar("T")
 
@@ -58,6 +62,16 @@ class Collector(Generic[T]):
                 self._condition.wait(remaining)
 
 
+def wait_for_future(future: Any, timeout: float, what: str) -> Any:
+    """The future's result, once the probe's executor has completed it."""
+    deadline = time.monotonic() + timeout
+    while not future.done():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{what} did not complete within {timeout} s")
+        time.sleep(0.02)
+    return future.result()
+
+
 class RosProbe:
     def __init__(self) -> None:
         if not rclpy.ok():
@@ -82,6 +96,34 @@ class RosProbe:
         self._thread.join(timeout=2.0)
         self.node.destroy_node()
         rclpy.try_shutdown()
+
+
+class OverheadCamera:
+    """Publishes the Create emulator's true pose as the overhead cameras would."""
+
+    def __init__(self, pose_file: Path, topic: str) -> None:
+        self.pose_file = pose_file
+        self.publisher = shared_probe().publisher(PoseStamped, topic)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(0.2):
+            try:
+                x, y, yaw, seen = (float(v) for v in self.pose_file.read_text().split()[:4])
+            except (OSError, ValueError):
+                continue
+            msg = PoseStamped()
+            msg.header.frame_id = "map"
+            now = shared_probe().node.get_clock().now().nanoseconds * 1e-9
+            msg.header.stamp = Time(seconds=now - (time.monotonic() - seen)).to_msg()
+            msg.pose.position.x, msg.pose.position.y = x, y
+            msg.pose.orientation.z, msg.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+            self.publisher.publish(msg)
+
+    def close(self) -> None:
+        self._stop.set()
 
 
 _probe: RosProbe | None = None

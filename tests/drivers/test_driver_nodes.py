@@ -17,8 +17,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from processes import REPO, Emulator, NodeProcess, executable
+from rclpy.action import ActionClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from ros_probe import shared_probe
+from ros_probe import OverheadCamera, shared_probe, wait_for_future
 from sensor_msgs.msg import BatteryState, JointState, LaserScan
 from std_msgs.msg import Bool, String
 from std_srvs.srv import SetBool
@@ -27,6 +28,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.planar_pose import Pose2D
 from hardware_drivers.tile_localization import find_tile
+from tiling_assembly_msgs.action import NavigateTo
 
 pytestmark = pytest.mark.ros
 
@@ -81,14 +83,17 @@ def rig(tmp_path_factory: pytest.TempPathFactory):
                                         namespace=NAMESPACE, params_files=arm_params),
         "hokuyo_urg": NodeProcess("hokuyo_urg", directory, "-p", f"port:={directory / 'urg'}",
                                   namespace=NAMESPACE),
+        "base_navigator": NodeProcess("base_navigator", directory, namespace=NAMESPACE),
     }
     arm = Emulator("dynamixel", directory / "arm")
     urg = Emulator("urg", directory / "urg", "--tile-pose", f"{TILE.x},{TILE.y},{TILE.yaw}",
                    "--noise", "0.003")
     rig = {"dir": directory, "nodes": nodes, "diagnostics": diagnostics, "odom": odom, "battery": battery,
            "bumper": bumper, "joints": joints, "scans": scans, "arm": arm, "urg": urg,
-           "cmd_vel": cmd_vel}
+           "cmd_vel": cmd_vel,
+           "camera": OverheadCamera(directory / "true_pose", f"{NAMESPACE}/overhead_pose")}
     yield rig
+    rig["camera"].close()
     codes = {name: node.stop() for name, node in nodes.items()}
     for emulator in (arm, urg, rig.get("create")):
         if emulator is not None:
@@ -106,7 +111,8 @@ def test_base_port_missing_at_start_is_reported_once_then_connected(rig) -> None
     assert values(status)["connected"] == "false"
     time.sleep(1.0)  # retries go on quietly
     assert node.log().count("does not exist") == 1
-    rig["create"] = Emulator("create", rig["dir"] / "create")
+    rig["create"] = Emulator("create", rig["dir"] / "create", "--pose-file",
+                             str(rig["dir"] / "true_pose"))
     node.wait_for_log("connected to the iRobot Create")
     rig["diagnostics"].wait_for("create_base", lambda s: level(s) == OK and "connected to" in s.message)
 
@@ -162,6 +168,28 @@ def test_bump_and_serial_faults_on_the_base_are_diagnosed_and_survived(rig) -> N
     rig["odom"].wait_for(lambda m: True, 3.0, "odometry after the reconnect", after=time.monotonic())
 
 
+def test_navigate_to_drives_the_base_to_the_goal(rig) -> None:
+    x, y, yaw = rig["create"].true_pose()
+    goal = NavigateTo.Goal()
+    goal.target.header.frame_id = "map"
+    target = Pose2D(x, y, yaw).compose(Pose2D(0.15, 0.05, 0.8))
+    goal.target.pose.position.x, goal.target.pose.position.y = target.x, target.y
+    orientation = goal.target.pose.orientation
+    orientation.z, orientation.w = math.sin(target.yaw / 2), math.cos(target.yaw / 2)
+    client = ActionClient(shared_probe().node, NavigateTo, f"{NAMESPACE}/navigate_to")
+    try:
+        assert client.wait_for_server(timeout_sec=10.0)
+        handle = wait_for_future(client.send_goal_async(goal), 10.0, "the goal's acceptance")
+        assert handle.accepted
+        result = wait_for_future(handle.get_result_async(), 40.0, "navigate_to").result
+    finally:
+        client.destroy()
+    assert result.success, result.message
+    x, y, yaw = rig["create"].true_pose()
+    assert math.hypot(x - target.x, y - target.y) < 0.03
+    assert abs(math.remainder(yaw - target.yaw, 2 * math.pi)) < math.radians(4)
+
+
 def test_a_joint_goal_is_reached_and_reported(rig) -> None:
     joints = rig["joints"].wait_for(lambda m: len(m.name) == 6, 10.0, "joint states")
     assert list(joints.name) == ["base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll", "gripper"]
@@ -205,12 +233,8 @@ def test_a_joint_error_is_diagnosed_and_torque_re_enabled(rig) -> None:
     diagnostics.wait_for("crustcrawler_arm", lambda s: level(s) == OK)
     client = shared_probe().node.create_client(SetBool, f"{NAMESPACE}/torque_enable")
     assert client.wait_for_service(timeout_sec=5.0)
-    future = client.call_async(SetBool.Request(data=True))
-    deadline = time.monotonic() + 5.0
-    while not future.done():
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
-    assert future.result().success, future.result().message
+    response = wait_for_future(client.call_async(SetBool.Request(data=True)), 5.0, "torque_enable")
+    assert response.success, response.message
     arm.wait_for("torque 2 1", 2.0)
 
 

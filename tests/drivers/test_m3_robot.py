@@ -10,16 +10,12 @@ from __future__ import annotations
 
 import math
 import re
-import threading
 import time
-from pathlib import Path
 
 import pytest
-from geometry_msgs.msg import PoseStamped
 from processes import Emulator, NodeProcess
 from rclpy.action import ActionClient
-from rclpy.time import Time
-from ros_probe import shared_probe
+from ros_probe import OverheadCamera, shared_probe
 
 from hardware_drivers import dynamixel_protocol as dx
 from hardware_drivers.place_tile_mission import Outcome, Phase
@@ -36,34 +32,6 @@ LASER_MOUNT = "0.16,0.0,0.0"
 FAST_SERVOS = ("-p", "joint_max_velocities:=[3.0,3.0,3.0,3.0,3.0,3.0]")
 FAST = (*FAST_SERVOS, "-p", "arm_speed:=2.5", "-p", "max_linear:=0.3", "-p", "max_angular:=1.5")
 GRIPPER_ON_TILE = dx.radians_to_position(-0.2)  # servo position where the fingers meet a 4 cm tile
-
-
-class OverheadCamera:
-    """Publishes the Create emulator's true pose as the overhead cameras would."""
-
-    def __init__(self, pose_file: Path, topic: str) -> None:
-        self.pose_file = pose_file
-        self.publisher = shared_probe().publisher(PoseStamped, topic)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while not self._stop.wait(0.2):
-            try:
-                x, y, yaw, seen = (float(v) for v in self.pose_file.read_text().split()[:4])
-            except (OSError, ValueError):
-                continue
-            msg = PoseStamped()
-            msg.header.frame_id = "map"
-            now = shared_probe().node.get_clock().now().nanoseconds * 1e-9
-            msg.header.stamp = Time(seconds=now - (time.monotonic() - seen)).to_msg()
-            msg.pose.position.x, msg.pose.position.y = x, y
-            msg.pose.orientation.z, msg.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
-            self.publisher.publish(msg)
-
-    def close(self) -> None:
-        self._stop.set()
 
 
 @pytest.fixture(scope="module")
@@ -177,6 +145,18 @@ def test_no_tile_at_the_cache_fails_with_no_tile(m3) -> None:
     assert "\n" not in result.message
     assert feedback[-1].phase == Phase.LOCATING_TILE
     assert Outcome.FAILED_NO_TILE == PlaceTile.Result.FAILED_NO_TILE
+
+
+def test_a_gripper_closing_on_nothing_fails_with_grasp_error(m3) -> None:
+    m3["arm"].send("stall 6 none")  # no tile between the fingers
+    m3["arm"].wait_for("stall 6 none")
+    try:
+        result, feedback, _ = _run_goal(m3["client"], _goal(), timeout=60.0)
+    finally:
+        m3["arm"].send(f"stall 6 {GRIPPER_ON_TILE}")
+    assert result.error_code == PlaceTile.Result.FAILED_GRASP
+    assert result.message == "the gripper closed on nothing: the tile was not grasped"
+    assert feedback[-1].phase == Phase.PICKING
 
 
 def test_cancel_stops_the_wheels(m3) -> None:
