@@ -128,7 +128,8 @@ class CreateDriver(SupervisedDevice):
 
     # ------------------------------------------------------------------ public API
     def drive(self, linear: float, angular: float) -> tuple[float, float]:
-        """Command a body twist (m/s, rad/s); returns the (right, left) wheel speeds sent (m/s).
+        """Command a body twist (m/s, rad/s); returns the (right, left) wheel speeds it commands
+        (m/s; nothing reaches the robot while it is disconnected).
 
         Clamped to max_linear/max_angular and the per-wheel limit; zero while a wheel is dropped;
         forward motion refused while a bumper is pressed. Restarts the watchdog.
@@ -249,7 +250,7 @@ class CreateDriver(SupervisedDevice):
             self._send_wheels(0, 0, force=True)
             self.health.count("watchdog_stops")
             self.health.event(
-                Level.WARN, f"no velocity command for {self.config.watchdog_timeout:g} s: wheels stopped"
+                Level.OK, f"no velocity command for {self.config.watchdog_timeout:g} s: wheels stopped"
             )
 
     def _apply_frames(self, frames: list[dict[int, int]]) -> None:
