@@ -88,8 +88,17 @@ class RosProbe:
         self.node.create_subscription(message_type, topic, collector.add, qos)
         return collector
 
-    def publisher(self, message_type: Any, topic: str, qos: QoSProfile | int = 10):
-        return self.node.create_publisher(message_type, topic, qos)
+    def publisher(self, message_type: Any, topic: str, qos: QoSProfile | int = 10,
+                  wait_for_subscriber: float = 0.0) -> Any:
+        """A publisher; with `wait_for_subscriber`, once a subscriber has been discovered (so that
+        the first message is not lost to discovery)."""
+        publisher = self.node.create_publisher(message_type, topic, qos)
+        deadline = time.monotonic() + wait_for_subscriber
+        while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        if wait_for_subscriber and publisher.get_subscription_count() == 0:
+            raise AssertionError(f"nobody subscribes {topic} after {wait_for_subscriber} s")
+        return publisher
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=2.0)

@@ -121,6 +121,10 @@ def test_cmd_vel_moves_the_base_and_odometry_follows(rig) -> None:
     emulator = rig["create"]
     rig["odom"].wait_for(lambda m: True, 10.0, "odometry")
     publisher = rig["cmd_vel"]
+    deadline = time.monotonic() + 10.0
+    while publisher.get_subscription_count() == 0:  # create_base's subscription discovered
+        assert time.monotonic() < deadline, "create_base does not subscribe cmd_vel"
+        time.sleep(0.02)
     twist = Twist()
     twist.linear.x, twist.angular.z = 0.2, 0.6
     end = time.monotonic() + 1.5
@@ -199,8 +203,8 @@ def test_a_joint_goal_is_reached_and_reported(rig) -> None:
     first.positions, first.time_from_start.nanosec = [0.4, -0.3], 500_000_000
     second.positions, second.time_from_start.sec = [0.7, -0.6], 1
     trajectory.points = [first, second]
-    publisher = shared_probe().publisher(JointTrajectory, f"{NAMESPACE}/joint_trajectory")
-    time.sleep(0.3)  # discovery of the new publisher
+    publisher = shared_probe().publisher(JointTrajectory, f"{NAMESPACE}/joint_trajectory",
+                                         wait_for_subscriber=10.0)
     publisher.publish(trajectory)
 
     def at(message: JointState, shoulder: float, elbow: float) -> bool:
@@ -217,8 +221,7 @@ def test_a_joint_goal_is_reached_and_reported(rig) -> None:
     publisher.publish(bad)
     rig["nodes"]["crustcrawler_arm"].wait_for_log(
         "trajectory refused: goal 3.000 rad for joint elbow is outside")
-    named = shared_probe().publisher(String, f"{NAMESPACE}/named_pose")
-    time.sleep(0.3)
+    named = shared_probe().publisher(String, f"{NAMESPACE}/named_pose", wait_for_subscriber=10.0)
     named.publish(String(data="home"))
     rig["joints"].wait_for(lambda m: at(m, 0.0, 0.0), 5.0, "the home pose")
 
