@@ -211,8 +211,8 @@ def test_a_joint_goal_is_reached_and_reported(rig) -> None:
         position = dict(zip(message.name, message.position, strict=False))
         return abs(position["shoulder"] - shoulder) < 0.02 and abs(position["elbow"] - elbow) < 0.02
 
-    rig["joints"].wait_for(lambda m: at(m, 0.4, -0.3), 5.0, "the first point")
-    rig["joints"].wait_for(lambda m: at(m, 0.7, -0.6), 5.0, "the second point")
+    rig["joints"].wait_for(lambda m: at(m, 0.4, -0.3), 15.0, "the first point")
+    rig["joints"].wait_for(lambda m: at(m, 0.7, -0.6), 15.0, "the second point")
     bad = JointTrajectory()
     bad.joint_names = ["elbow"]
     point = JointTrajectoryPoint()
@@ -223,7 +223,7 @@ def test_a_joint_goal_is_reached_and_reported(rig) -> None:
         "trajectory refused: goal 3.000 rad for joint elbow is outside")
     named = shared_probe().publisher(String, f"{NAMESPACE}/named_pose", wait_for_subscriber=10.0)
     named.publish(String(data="home"))
-    rig["joints"].wait_for(lambda m: at(m, 0.0, 0.0), 5.0, "the home pose")
+    rig["joints"].wait_for(lambda m: at(m, 0.0, 0.0), 15.0, "the home pose")
 
 
 def test_a_joint_error_is_diagnosed_and_torque_re_enabled(rig) -> None:
