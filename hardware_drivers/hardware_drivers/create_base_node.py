@@ -1,0 +1,153 @@
+"""`create_base`: the iRobot Create base of an M3 or scanning robot (paper section 3.1) as a node.
+
+    ros2 run hardware_drivers create_base --ros-args -r __ns:=/robot1 -p port:=/dev/ttyUSB0
+
+Subscribes ``cmd_vel`` (geometry_msgs/Twist: linear.x m/s, angular.z rad/s; clamped to the
+limits; the wheels stop when commands stop for ``watchdog_timeout``). Publishes ``odom``
+(nav_msgs/Odometry, frame ``odom`` -> ``base_link``), ``battery`` (sensor_msgs/BatteryState),
+``bumper`` and ``wheel_drop`` (std_msgs/Bool, on change and once a second) and ``/diagnostics``.
+A bump or wheel drop stops the wheels (see ``create_driver``). The port may be missing at start
+or vanish: the node keeps running, says so once, and reconnects when the robot is back.
+
+The odom -> base_link transform is not broadcast: the PyPI build of ROS this project runs on has no
+tf2; where tf2 is installed, run a transform broadcaster from ``odom`` if tools need it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from rclpy.time import Time
+from sensor_msgs.msg import BatteryState
+from std_msgs.msg import Bool
+
+from hardware_drivers.create_driver import CreateConfig, CreateDriver, CreateState
+from hardware_drivers.node_support import (
+    SENSOR_PUBLISHER_QOS,
+    DiagnosticsReporter,
+    ParameterError,
+    declare,
+    log_event,
+    positive,
+    require,
+    run_node,
+)
+
+
+class CreateBaseNode(Node):
+    def __init__(self, **node_options) -> None:
+        super().__init__("create_base", **node_options)
+        port = declare(self, "port", "/dev/ttyUSB0", "serial device of the Create (a pty path works)")
+        baud = int(declare(self, "baud", 57600, "baud rate: 57600 for a Create 1, 115200 for a Create 2"))
+        model = declare(self, "model", "create1", "create1 or create2 (wheel geometry, stream contents)")
+        mode = declare(self, "mode", "safe", "OI mode: safe (the robot stops at cliffs and drops) or full")
+        odometry = declare(self, "odometry", "distance_angle",
+                           "distance_angle (Create 1 packets 19/20) or encoders (Create 2 packets 43/44)")
+        max_linear = positive(self, "max_linear", 0.3, "m/s, largest forward speed accepted from cmd_vel")
+        max_angular = positive(self, "max_angular", 2.0, "rad/s, largest turn rate accepted from cmd_vel")
+        watchdog = positive(self, "watchdog_timeout", 0.2, "s without cmd_vel before the wheels stop")
+        stream_timeout = positive(self, "stream_timeout", 0.5, "s without sensor data before reconnecting")
+        rate = positive(self, "publish_rate", 50.0, "Hz, odometry rate (the Create streams at 66 Hz)")
+        self.odom_frame = declare(self, "odom_frame", "odom", "frame of the odometry pose")
+        self.base_frame = declare(self, "base_frame", "base_link", "frame of the robot base")
+        require(bool(port), "parameter port must name a device")
+        config = CreateConfig(
+            port=port, baud=baud, model=model, mode=mode, odometry=odometry, max_linear=max_linear,
+            max_angular=max_angular, watchdog_timeout=watchdog, stream_timeout=stream_timeout,
+        )
+        try:
+            self.driver = CreateDriver(config, on_event=lambda level, text: log_event(self, level, text))
+        except ValueError as error:
+            raise ParameterError(str(error)) from None
+        self.odom_publisher = self.create_publisher(Odometry, "odom", SENSOR_PUBLISHER_QOS)
+        self.battery_publisher = self.create_publisher(BatteryState, "battery", SENSOR_PUBLISHER_QOS)
+        self.bumper_publisher = self.create_publisher(Bool, "bumper", 10)
+        self.drop_publisher = self.create_publisher(Bool, "wheel_drop", 10)
+        self.create_subscription(Twist, "cmd_vel", self.on_cmd_vel, qos_profile_sensor_data)
+        self.diagnostics = DiagnosticsReporter(
+            self, f"{self.get_fully_qualified_name()}: iRobot Create", port, self.driver.health.snapshot
+        )
+        self._published_sequence = 0
+        # the driver stamps sensor frames with time.monotonic(); map them onto this node's clock
+        self._clock_offset = self.get_clock().now().nanoseconds * 1e-9 - time.monotonic()
+        self._hazard_state: tuple[bool, bool] | None = None
+        self._hazard_published_at = 0.0
+        self.create_timer(1.0 / rate, self.publish_state)
+        self.driver.start()
+
+    def on_cmd_vel(self, twist: Twist) -> None:
+        self.driver.drive(twist.linear.x, twist.angular.z)
+
+    def publish_state(self) -> None:
+        sequence, state = self.driver.state()
+        if state is None or sequence == self._published_sequence:
+            return  # nothing new: a silent robot must look silent
+        self._published_sequence = sequence
+        stamp = Time(seconds=state.stamp + self._clock_offset, clock_type=self.get_clock().clock_type)
+        self.odom_publisher.publish(self.odometry_message(state, stamp.to_msg()))
+        hazards = (state.hazards.bumped, state.hazards.wheel_dropped)
+        now = stamp.nanoseconds * 1e-9
+        if hazards != self._hazard_state or now - self._hazard_published_at >= 1.0:
+            self._hazard_state = hazards
+            self._hazard_published_at = now
+            self.bumper_publisher.publish(Bool(data=hazards[0]))
+            self.drop_publisher.publish(Bool(data=hazards[1]))
+            self.battery_publisher.publish(self.battery_message(state, stamp.to_msg()))
+
+    def odometry_message(self, state: CreateState, stamp) -> Odometry:
+        msg = Odometry()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self.odom_frame
+        msg.child_frame_id = self.base_frame
+        msg.pose.pose.position.x = state.pose.x
+        msg.pose.pose.position.y = state.pose.y
+        msg.pose.pose.orientation.z = math.sin(state.pose.yaw / 2.0)
+        msg.pose.pose.orientation.w = math.cos(state.pose.yaw / 2.0)
+        msg.twist.twist.linear.x = state.linear_velocity
+        msg.twist.twist.angular.z = state.angular_velocity
+        # planar odometry: x, y, yaw drift slowly; z, roll, pitch are fixed (large variance = unused)
+        msg.pose.covariance = _diagonal([1e-3, 1e-3, 1e6, 1e6, 1e6, 3e-3])
+        msg.twist.covariance = _diagonal([1e-3, 1e-3, 1e6, 1e6, 1e6, 3e-3])
+        return msg
+
+    def battery_message(self, state: CreateState, stamp) -> BatteryState:
+        msg = BatteryState()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self.base_frame
+        msg.voltage = state.voltage
+        msg.current = state.current
+        msg.temperature = state.temperature
+        msg.charge = state.charge
+        msg.capacity = state.capacity
+        msg.percentage = state.charge / state.capacity if state.capacity > 0 else math.nan
+        msg.power_supply_status = (
+            BatteryState.POWER_SUPPLY_STATUS_CHARGING if "charging" in state.charging_state
+            and state.charging_state != "not charging" else BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+        )
+        msg.power_supply_technology = BatteryState.POWER_SUPPLY_TECHNOLOGY_NIMH
+        msg.present = True
+        return msg
+
+    def shutdown(self) -> None:
+        self.driver.stop_wheels()
+        self.driver.stop()
+
+
+def _diagonal(values: list[float]) -> list[float]:
+    matrix = [0.0] * 36
+    for i, v in enumerate(values):
+        matrix[i * 7] = v
+    return matrix
+
+
+def main() -> int:
+    return run_node(CreateBaseNode, on_shutdown=lambda node: node.shutdown())
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

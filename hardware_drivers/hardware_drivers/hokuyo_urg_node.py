@@ -1,0 +1,87 @@
+"""`hokuyo_urg`: the Hokuyo URG laser of an M3 robot (paper section 3.1: it finds the tiles).
+
+    ros2 run hardware_drivers hokuyo_urg --ros-args -r __ns:=/robot1 -p port:=/dev/ttyACM0
+
+Publishes ``scan`` (sensor_msgs/LaserScan, reliable as REP 2003 asks of drivers; angles from the
+sensor's AMIN/AMAX/AFRT/ARES; NaN where the sensor reported an error code, +inf beyond DMAX) and
+``/diagnostics`` (model, firmware, scans, corrupt and faulty scans dropped, reconnects). The
+sensor is switched from SCIP 1.1 to 2.0 when needed and reconnected after errors (see
+``urg_driver``).
+"""
+
+from __future__ import annotations
+
+import time
+
+from rclpy.node import Node
+from rclpy.time import Time
+from sensor_msgs.msg import LaserScan
+
+from hardware_drivers.node_support import (
+    SENSOR_PUBLISHER_QOS,
+    DiagnosticsReporter,
+    ParameterError,
+    declare,
+    log_event,
+    positive,
+    require,
+    run_node,
+)
+from hardware_drivers.urg_driver import UrgConfig, UrgDriver
+
+
+class HokuyoUrgNode(Node):
+    def __init__(self, **node_options) -> None:
+        super().__init__("hokuyo_urg", **node_options)
+        port = declare(self, "port", "/dev/ttyACM0", "serial device of the URG (a pty path works)")
+        baud = int(declare(self, "baud", 115200, "baud rate tried first (then 19200, 38400, 115200)"))
+        self.frame_id = declare(self, "frame_id", "laser", "frame of the scans")
+        cluster = int(declare(self, "cluster", 1, "adjacent steps merged into one range (1..99)"))
+        skip = int(declare(self, "skip", 0, "scans skipped between two published (0..9)"))
+        error_limit = int(declare(self, "error_limit", 4, "bad scans in a row before reconnecting"))
+        scan_timeout = positive(self, "scan_timeout", 1.0, "s without a scan before reconnecting")
+        require(bool(port), "parameter port must name a device")
+        try:
+            config = UrgConfig(port=port, baud=baud, cluster=cluster, skip=skip, error_limit=error_limit,
+                               scan_timeout=scan_timeout)
+            self.driver = UrgDriver(config, on_event=lambda level, text: log_event(self, level, text))
+        except ValueError as error:
+            raise ParameterError(str(error)) from None
+        self.scan_publisher = self.create_publisher(LaserScan, "scan", SENSOR_PUBLISHER_QOS)
+        self.diagnostics = DiagnosticsReporter(
+            self, f"{self.get_fully_qualified_name()}: Hokuyo URG", port, self.driver.health.snapshot
+        )
+        self._published_sequence = 0
+        # map the driver's monotonic stamps onto this node's clock
+        self._clock_offset = self.get_clock().now().nanoseconds * 1e-9 - time.monotonic()
+        self.create_timer(0.01, self.publish_scan)
+        self.driver.start()
+
+    def publish_scan(self) -> None:
+        sequence, scan = self.driver.latest_scan()
+        if scan is None or sequence == self._published_sequence:
+            return
+        self._published_sequence = sequence
+        msg = LaserScan()
+        msg.header.stamp = Time(seconds=scan.stamp + self._clock_offset).to_msg()
+        msg.header.frame_id = self.frame_id
+        msg.angle_min = scan.angle_min
+        msg.angle_max = scan.angle_max
+        msg.angle_increment = scan.angle_increment
+        msg.time_increment = scan.time_increment
+        msg.scan_time = scan.scan_time
+        msg.range_min = scan.range_min
+        msg.range_max = scan.range_max
+        msg.ranges = scan.ranges.astype(float).tolist()
+        self.scan_publisher.publish(msg)
+
+    def shutdown(self) -> None:
+        self.driver.stop()
+
+
+def main() -> int:
+    return run_node(HokuyoUrgNode, on_shutdown=lambda node: node.shutdown())
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

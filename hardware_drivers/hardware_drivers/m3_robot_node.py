@@ -1,0 +1,403 @@
+"""`m3_robot`: serves ``place_tile`` (tiling_assembly_msgs/action/PlaceTile) for one M3 robot by
+composing its device nodes (paper section 3.1), in the robot's namespace.
+
+    ros2 run hardware_drivers m3_robot --ros-args -r __ns:=/robot1 \\
+        --params-file config/hardware_drivers.yaml --params-file config/crustcrawler_arm.yaml
+
+Composition by topics, not by owning the drivers: the base, the arm and the laser stay separate
+processes (``create_base``, ``crustcrawler_arm``, ``hokuyo_urg``), each owning its serial port. On
+the real robot that is what a user wants: every device can be started, restarted, watched
+(``ros2 topic echo /robot1/scan``) and used alone while this node is down or being debugged; a
+crash or a reconnect in one device does not take the others down; and the action semantics do not
+depend on serial details, so the simulated robots serve the same action.
+
+Uses: ``odom`` and ``overhead_pose`` (map pose of base_link from the overhead cameras) to drive
+with ``cmd_vel``; ``scan`` to find the tile at its cache; ``joint_states`` and
+``joint_trajectory`` for the arm; ``bumper``/``wheel_drop`` and ``/diagnostics`` of its own
+devices to stop with a clear failure. Tile footprints come from ``/structure`` (latched) or the
+``structure_file`` parameter. Feedback carries the action's phases; a failure ends with the
+action's error code and one line; a cancel stops the wheels at once.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Mapping
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Twist
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import JointState, LaserScan
+from std_msgs.msg import Bool
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from hardware_drivers.arm_kinematics import ArmGeometry
+from hardware_drivers.base_navigation import GoToPoseParams
+from hardware_drivers.crustcrawler_arm_node import declare_arm_description
+from hardware_drivers.device_health import DeviceHealth, Level
+from hardware_drivers.laser_scan import LaserScanData
+from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
+from hardware_drivers.node_support import (
+    DIAGNOSTICS_QOS,
+    DiagnosticsReporter,
+    ParameterError,
+    declare,
+    floats,
+    positive,
+    require,
+    run_node,
+)
+from hardware_drivers.place_tile_mission import (
+    MissionConfig,
+    MissionResult,
+    Outcome,
+    Phase,
+    PlaceGoal,
+    PlaceTileMission,
+)
+from hardware_drivers.planar_pose import Pose2D
+from hardware_drivers.tile_localization import LocalizationParams, footprint_of
+from tiling_assembly.messages import structure_from_msg
+from tiling_assembly.structure import StructureError, TileType
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.msg import Structure as StructureMsg
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                     reliability=ReliabilityPolicy.RELIABLE)
+DEVICE_NODES = ("create_base", "crustcrawler_arm", "hokuyo_urg")
+ARM_JOINTS = ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
+
+
+class M3RobotNode(Node):
+    def __init__(self, **node_options) -> None:
+        super().__init__("m3_robot", **node_options)
+        self.config = self._mission_config()
+        self.device_timeout = positive(self, "device_timeout", 1.0,
+                                       "s without odom/joint_states before a device counts as lost")
+        fix_weight = positive(self, "overhead_fix_weight", 0.3, "weight (0..1] of each overhead fix")
+        require(fix_weight <= 1.0, "overhead_fix_weight must be in (0, 1]")
+        structure_file = declare(self, "structure_file", "",
+                                 "structure file for the tile footprints; empty: use /structure")
+        self.tile_types: dict[str, TileType] = {}
+        if structure_file:
+            try:
+                self.tile_types = dict(load_structure(structure_file).tile_types)
+            except (StructureError, OSError) as error:
+                raise ParameterError(f"structure_file: {error}") from None
+
+        group = ReentrantCallbackGroup()
+        self._lock = threading.Lock()
+        self.tracker = MapPoseTracker(self, fix_weight, self.device_timeout, group)
+        self._joint_state: tuple[float, dict[str, tuple[float, float]]] | None = None
+        self._scan: tuple[float, LaserScanData] | None = None
+        self._scan_event = threading.Condition(self._lock)
+        self._bumper = False
+        self._wheel_drop = False
+        self._device_status: dict[str, tuple[int, str, dict[str, str]]] = {}
+        self._busy = False
+        self.cmd_vel = self.create_publisher(Twist, "cmd_vel", 10)
+        self.trajectory = self.create_publisher(JointTrajectory, "joint_trajectory", 10)
+        self.create_subscription(LaserScan, "scan", self.on_scan, qos_profile_sensor_data,
+                                 callback_group=group)
+        self.create_subscription(JointState, "joint_states", self.on_joints, qos_profile_sensor_data,
+                                 callback_group=group)
+        self.create_subscription(Bool, "bumper", lambda m: setattr(self, "_bumper", m.data), 10,
+                                 callback_group=group)
+        self.create_subscription(Bool, "wheel_drop", lambda m: setattr(self, "_wheel_drop", m.data), 10,
+                                 callback_group=group)
+        self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, DIAGNOSTICS_QOS,
+                                 callback_group=group)
+        self.create_subscription(StructureMsg, "/structure", self.on_structure, LATCHED, callback_group=group)
+        self.health = DeviceHealth(on_event=None)
+        self.health.set_state(Level.OK, "idle")
+        self.diagnostics = DiagnosticsReporter(self, f"{self.get_fully_qualified_name()}: M3 robot",
+                                               "m3_robot", self.health.snapshot)
+        self.action_server = ActionServer(
+            self, PlaceTile, "place_tile", execute_callback=self.execute, goal_callback=self.on_goal,
+            cancel_callback=self.on_cancel, callback_group=group,
+        )
+        self.get_logger().info(
+            f"serving {self.resolve_topic_name('place_tile')}; tile types known: "
+            f"{', '.join(sorted(self.tile_types)) or 'none yet (waiting for /structure)'}"
+        )
+
+    def _mission_config(self) -> MissionConfig:
+        """The mission's parameters: the arm description (crustcrawler_arm.yaml) and this node's."""
+        arm = declare_arm_description(self)
+        require(all(j in arm["names"] for j in ARM_JOINTS),
+                f"joint_names must contain {', '.join(ARM_JOINTS)}")
+        carry_name = declare(self, "carry_pose", "carry", "named arm pose held while driving")
+        require(carry_name in arm["poses"], f"carry_pose '{carry_name}' is not one of named_pose_names")
+        geometry = ArmGeometry(
+            *arm["links"],
+            lower=tuple(arm["lower"][arm["names"].index(j)] for j in ARM_JOINTS),
+            upper=tuple(arm["upper"][arm["names"].index(j)] for j in ARM_JOINTS),
+        )
+        try:
+            geometry.validate()
+        except ValueError as error:
+            raise ParameterError(str(error)) from None
+
+        def length(name: str, default: float, description: str) -> float:
+            return positive(self, name, default, description)
+
+        return MissionConfig(
+            geometry=geometry,
+            arm_joints=ARM_JOINTS,
+            gripper_joint=arm["gripper"],
+            gripper_open=arm["gripper_open"],
+            gripper_closed=arm["gripper_closed"],
+            carry_pose=tuple(arm["poses"][carry_name][j] for j in ARM_JOINTS),
+            arm_mount=tuple(floats(self, "arm_mount", [0.10, 0.0, 0.07, 0.0],
+                                   "x, y, z (m), yaw (rad) of the arm base in base_link", 4)),
+            laser_mount=tuple(floats(self, "laser_mount", [0.16, 0.0, 0.0],
+                                     "x, y (m), yaw (rad) of the laser in base_link", 3)),
+            pick_standoff=length("pick_standoff", 0.35, "m, base_link to the cache point at the stop"),
+            place_standoff=length("place_standoff", 0.32, "m, base_link to the tile goal at the stop"),
+            preferred_reach=length("preferred_reach", 0.22, "m from the arm base to a tile to pick"),
+            reach_tolerance=length("reach_tolerance", 0.05, "m, accepted deviation from preferred_reach"),
+            cache_search_radius=length("cache_search_radius", 0.2, "m around the cache point to look"),
+            approach_height=length("approach_height", 0.05, "m above the grasp height before going down"),
+            arm_speed=length("arm_speed", 0.8, "rad/s for planned arm moves"),
+            joint_tolerance=length("joint_tolerance", 0.04, "rad, a joint counts as arrived this close"),
+            grasp_margin=length("grasp_margin", 0.08, "rad, the gripper must stop this far from closed"),
+            navigation=GoToPoseParams(
+                max_linear=length("max_linear", 0.2, "m/s, driving speed"),
+                max_angular=length("max_angular", 1.0, "rad/s, turning speed"),
+                position_tolerance=length("position_tolerance", 0.01, "m, stop this close to a drive goal"),
+                yaw_tolerance=length("yaw_tolerance", 0.02, "rad, final heading tolerance"),
+            ),
+            navigation_timeout=length("navigation_timeout", 90.0, "s allowed per drive"),
+            retreat_distance=length("retreat_distance", 0.10, "m to back away after placing"),
+            localization=LocalizationParams(
+                max_rms=length("tile_max_rms", 0.008, "m, worst accepted fit of a tile's outline"),
+            ),
+        )
+
+    # ------------------------------------------------------------------ inputs
+    def on_scan(self, msg: LaserScan) -> None:
+        scan = LaserScanData(
+            stamp=msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
+            angle_min=msg.angle_min, angle_increment=msg.angle_increment,
+            ranges=np.asarray(msg.ranges, dtype=float), range_min=msg.range_min, range_max=msg.range_max,
+            time_increment=msg.time_increment, scan_time=msg.scan_time,
+        )
+        with self._scan_event:
+            self._scan = (time.monotonic(), scan)
+            self._scan_event.notify_all()
+
+    def on_joints(self, msg: JointState) -> None:
+        velocities = list(msg.velocity) or [0.0] * len(msg.name)
+        with self._lock:
+            previous = self._joint_state[1] if self._joint_state else {}
+            fresh = {n: (p, v) for n, p, v in zip(msg.name, msg.position, velocities, strict=False)}
+            merged = {**previous, **fresh}
+            self._joint_state = (time.monotonic(), merged)
+
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        namespace = self.get_namespace().rstrip("/")
+        for status in msg.status:
+            for device in DEVICE_NODES:
+                if status.name.startswith(f"{namespace}/{device}:"):
+                    values = {kv.key: kv.value for kv in status.values}
+                    with self._lock:
+                        self._device_status[device] = (status.level[0] if isinstance(status.level, bytes)
+                                                       else int(status.level), status.message, values)
+
+    def on_structure(self, msg: StructureMsg) -> None:
+        try:
+            structure = structure_from_msg(msg, "/structure")
+        except StructureError as error:
+            self.get_logger().error(f"ignoring /structure: {error}")
+            return
+        with self._lock:
+            self.tile_types.update(structure.tile_types)
+        self.get_logger().info(f"tile types from /structure: {', '.join(sorted(structure.tile_types))}")
+
+    # ------------------------------------------------------------------ M3Hardware for the mission
+    def now(self) -> float:
+        return time.monotonic()
+
+    def sleep(self, seconds: float) -> None:
+        time.sleep(seconds)
+
+    def map_pose(self) -> Pose2D | None:
+        return self.tracker.map_pose()
+
+    def drive(self, linear: float, angular: float) -> None:
+        twist = Twist()
+        twist.linear.x = float(linear)
+        twist.angular.z = float(angular)
+        self.cmd_vel.publish(twist)
+
+    def stop(self) -> None:
+        self.cmd_vel.publish(Twist())
+
+    def scan_after(self, stamp: float, timeout: float) -> LaserScanData | None:
+        deadline = time.monotonic() + timeout
+        with self._scan_event:
+            while self._scan is None or self._scan[0] <= stamp:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return None
+                self._scan_event.wait(remaining)
+            return self._scan[1]
+
+    def joints(self) -> Mapping[str, tuple[float, float]] | None:
+        with self._lock:
+            if self._joint_state is None or time.monotonic() - self._joint_state[0] > self.device_timeout:
+                return None
+            return dict(self._joint_state[1])
+
+    def move_joints(self, goals: Mapping[str, float], duration: float) -> None:
+        msg = JointTrajectory()
+        msg.joint_names = list(goals)
+        point = JointTrajectoryPoint()
+        point.positions = [float(v) for v in goals.values()]
+        point.time_from_start.sec = int(duration)
+        point.time_from_start.nanosec = int((duration - int(duration)) * 1e9)
+        msg.points = [point]
+        self.trajectory.publish(msg)
+
+    def hazard(self) -> str | None:
+        if self._wheel_drop:
+            return "a wheel dropped"
+        if self._bumper:
+            return "the bumper is pressed"
+        return None
+
+    def fault(self) -> str | None:
+        now = time.monotonic()
+        odom_age = self.tracker.odom_age()
+        with self._lock:
+            joints_age = now - self._joint_state[0] if self._joint_state else math.inf
+            statuses = dict(self._device_status)
+        for device in ("create_base", "crustcrawler_arm"):
+            status = statuses.get(device)
+            if status and status[2].get("connected") == "false":
+                return f"{device}: {status[1]}"
+        arm = statuses.get("crustcrawler_arm")
+        if arm and arm[0] == Level.ERROR:
+            return f"crustcrawler_arm: {arm[1]}"
+        if odom_age > self.device_timeout:
+            return f"create_base: no odom for {self.device_timeout:g} s (base not answering?)"
+        if joints_age > self.device_timeout:
+            return f"crustcrawler_arm: no joint_states for {self.device_timeout:g} s (arm not answering?)"
+        return None
+
+    # ------------------------------------------------------------------ the action
+    def on_goal(self, goal: PlaceTile.Goal) -> GoalResponse:
+        with self._lock:
+            if self._busy:
+                self.get_logger().warning(f"goal for tile {goal.tile_id} rejected: a placement is under way")
+                return GoalResponse.REJECT
+            self._busy = True
+        return GoalResponse.ACCEPT
+
+    def on_cancel(self, goal_handle) -> CancelResponse:
+        self.stop()  # at once; the mission notices the request within one control period
+        return CancelResponse.ACCEPT
+
+    def execute(self, goal_handle) -> PlaceTile.Result:
+        request: PlaceTile.Goal = goal_handle.request
+        try:
+            result = self._execute(goal_handle, request)
+        finally:
+            with self._lock:
+                self._busy = False
+        message = PlaceTile.Result()
+        message.error_code = int(result.outcome)
+        message.message = result.message
+        message.duration = float(result.duration)
+        message.placed_pose.header.frame_id = "map"
+        message.placed_pose.header.stamp = self.get_clock().now().to_msg()
+        if result.placed_pose is not None:
+            message.placed_pose.pose.position.x = result.placed_pose.x
+            message.placed_pose.pose.position.y = result.placed_pose.y
+            message.placed_pose.pose.position.z = result.placed_z
+            set_yaw(message.placed_pose.pose.orientation, result.placed_pose.yaw)
+        if result.outcome == Outcome.SUCCEEDED:
+            goal_handle.succeed()
+            self.health.set_state(Level.OK, f"idle; placed tile {request.tile_id}")
+            self.get_logger().info(f"placed tile {request.tile_id} in {result.duration:.1f} s")
+        elif result.outcome == Outcome.CANCELED and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+            self.health.set_state(Level.OK, f"idle; tile {request.tile_id} canceled")
+            self.get_logger().info(f"tile {request.tile_id}: canceled, wheels stopped")
+        else:
+            goal_handle.abort()
+            self.health.set_state(Level.WARN, f"idle; tile {request.tile_id} failed: {result.message}")
+            self.get_logger().error(
+                f"tile {request.tile_id} failed ({result.outcome.name}): {result.message}")
+        return message
+
+    def _execute(self, goal_handle, request: PlaceTile.Goal) -> MissionResult:
+        with self._lock:
+            tile_type = self.tile_types.get(request.tile_type)
+        if tile_type is None:
+            return MissionResult(Outcome.FAILED_NO_TILE, f"unknown tile type '{request.tile_type}' "
+                                 "(no footprint from /structure or structure_file)")
+        frame = request.pose.header.frame_id
+        if frame not in ("", "map"):
+            return MissionResult(Outcome.FAILED_NAVIGATION,
+                                 f"goal pose in frame '{frame}'; this robot drives in 'map'")
+        footprint = footprint_of(tile_type)
+        height = float(tile_type.shape.vertices[:, 2].max() - tile_type.shape.vertices[:, 2].min())
+        goal = PlaceGoal(
+            tile_id=request.tile_id, tile_type=request.tile_type, footprint=footprint, height=height,
+            pose=Pose2D(request.pose.pose.position.x, request.pose.pose.position.y,
+                        yaw_of(request.pose.pose.orientation)),
+            z=request.pose.pose.position.z, cache=(request.cache.x, request.cache.y),
+        )
+        self.get_logger().info(
+            f"placing tile {goal.tile_id} ({goal.tile_type}) at {goal.pose}, z {goal.z:.3f} m; "
+            f"cache at ({goal.cache[0]:.2f}, {goal.cache[1]:.2f})"
+        )
+
+        def feedback(phase: Phase, progress: float, pose: Pose2D | None) -> None:
+            msg = PlaceTile.Feedback()
+            msg.phase = int(phase)
+            msg.phase_progress = float(progress)
+            msg.robot_pose.header.frame_id = "map"
+            msg.robot_pose.header.stamp = self.get_clock().now().to_msg()
+            if pose is not None:
+                msg.robot_pose.pose.position.x = pose.x
+                msg.robot_pose.pose.position.y = pose.y
+                set_yaw(msg.robot_pose.pose.orientation, pose.yaw)
+            goal_handle.publish_feedback(msg)
+            self.health.set_state(Level.OK, f"tile {goal.tile_id}: {phase.name.lower()} ({progress:.0%})")
+
+        hardware = _GoalHardware(self, goal_handle)
+        mission = PlaceTileMission(hardware, self.config, feedback, log=self.get_logger().info)
+        return mission.run(goal)
+
+
+class _GoalHardware:
+    """The node's robot interface, with cancellation bound to one goal."""
+
+    def __init__(self, node: M3RobotNode, goal_handle) -> None:
+        self._node = node
+        self._goal_handle = goal_handle
+
+    def canceled(self) -> bool:
+        return bool(self._goal_handle.is_cancel_requested)
+
+    def __getattr__(self, name: str):
+        return getattr(self._node, name)
+
+
+def main() -> int:
+    return run_node(M3RobotNode, executor=lambda: MultiThreadedExecutor(num_threads=4),
+                    on_shutdown=lambda node: node.stop() if node.context.ok() else None)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

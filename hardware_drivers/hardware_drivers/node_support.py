@@ -1,0 +1,137 @@
+"""What the driver nodes share on the ROS side: declared and validated parameters, diagnostics
+from a driver's health, driver events as log lines, and a clean main loop.
+
+Kept apart from the drivers so that they stay ROS-free; every node uses these the same way.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from hardware_drivers.device_health import HealthReport, Level
+
+DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+# REP 2003: sensor drivers publish reliable, so best-effort and reliable subscribers both connect
+SENSOR_PUBLISHER_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class ParameterError(ValueError):
+    """A parameter value the node cannot start with (one line)."""
+
+
+def declare(node: Node, name: str, default: Any, description: str) -> Any:
+    """Declare a parameter with a description and return its value."""
+    node.declare_parameter(name, default, ParameterDescriptor(description=description))
+    return node.get_parameter(name).value
+
+
+def require(condition: bool, message: str) -> None:
+    if not condition:
+        raise ParameterError(message)
+
+
+def positive(node: Node, name: str, default: float, description: str) -> float:
+    value = float(declare(node, name, default, description))
+    require(value > 0, f"parameter {name} must be positive, got {value}")
+    return value
+
+
+def floats(node: Node, name: str, default: Sequence[float], description: str,
+           length: int | None = None) -> list[float]:
+    value = [float(v) for v in declare(node, name, list(map(float, default)), description)]
+    if length is not None:
+        require(len(value) == length, f"parameter {name} needs {length} numbers, got {len(value)}")
+    return value
+
+
+def log_event(node: Node, level: Level, message: str) -> None:
+    """A driver event as one log line."""
+    logger = node.get_logger()
+    if level == Level.OK:
+        logger.info(message)
+    elif level == Level.WARN:
+        logger.warning(message)
+    else:
+        logger.error(message)
+
+
+def diagnostic_status(report: HealthReport, name: str, hardware_id: str) -> DiagnosticStatus:
+    return DiagnosticStatus(
+        level=bytes([int(report.level)]),
+        name=name,
+        message=report.message,
+        hardware_id=hardware_id,
+        values=[KeyValue(key=k, value=v) for k, v in report.values.items()],
+    )
+
+
+class DiagnosticsReporter:
+    """Publishes a device's health on /diagnostics once a second and at every change of level or
+    message."""
+
+    def __init__(self, node: Node, name: str, hardware_id: str, health: Callable[[], HealthReport],
+                 period: float = 1.0) -> None:
+        self.node = node
+        self.name = name
+        self.hardware_id = hardware_id
+        self.health = health
+        self.publisher = node.create_publisher(DiagnosticArray, "/diagnostics", DIAGNOSTICS_QOS)
+        self._last: tuple[int, str] | None = None
+        self._since = 0.0
+        self._period = period
+        node.create_timer(0.1, self._tick)
+
+    def _tick(self) -> None:
+        report = self.health()
+        key = (int(report.level), report.message)
+        self._since += 0.1
+        if key != self._last or self._since >= self._period - 1e-6:
+            self.publish(report)
+
+    def publish(self, report: HealthReport | None = None) -> None:
+        report = report or self.health()
+        self._last = (int(report.level), report.message)
+        self._since = 0.0
+        array = DiagnosticArray()
+        array.header.stamp = self.node.get_clock().now().to_msg()
+        array.status = [diagnostic_status(report, self.name, self.hardware_id)]
+        self.publisher.publish(array)
+
+
+def run_node(make_node: Callable[[], Node], executor: Callable[[], Executor] = SingleThreadedExecutor,
+             on_shutdown: Callable[[Node], None] | None = None) -> int:
+    """rclpy.init, build the node (a ParameterError: one line on stderr, exit code 2), spin until
+    Ctrl-C or shutdown, clean up. Returns the exit code."""
+    rclpy.init(args=sys.argv)
+    node: Node | None = None
+    try:
+        node = make_node()
+    except ParameterError as error:
+        print(f"error: {error}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    spinner = executor()
+    spinner.add_node(node)
+    try:
+        spinner.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if on_shutdown is not None:
+            try:
+                on_shutdown(node)
+            except Exception as error:
+                print(f"{node.get_name()}: while shutting down: {error}", file=sys.stderr)
+        spinner.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -1,0 +1,466 @@
+"""Placing one tile with an M3 robot (paper section 3.1), no ROS.
+
+"Each robot was given the global position of the structure's center and the positions of their
+respective parts cache ... The LRF was used by the assembly robots to detect, pick, and place the
+tiles." One mission, in the phases of the PlaceTile action:
+
+1. DRIVING_TO_CACHE: stow the arm, open the gripper, drive (odometry corrected by the overhead
+   cameras) to a pose facing the tile type's cache at ``pick_standoff``;
+2. LOCATING_TILE: find the tile's footprint in fresh laser scans near the cache point; if it lies
+   outside the arm's comfortable reach, move the base (at most ``max_adjustments`` times) and look
+   again;
+3. PICKING: above the tile, down, close the gripper (it must stop on the tile, not close fully),
+   lift, carry pose; the tile's yaw in the fingers is remembered;
+4. DRIVING_TO_STRUCTURE: drive to a pose facing the goal at ``place_standoff``;
+5. PLACING: above the goal, down, release; the placed pose comes from the measured joints;
+6. RETREATING: lift, carry pose, back away.
+
+Failures end the mission with a result code and one line: FAILED_NAVIGATION (no pose, timeout,
+bumper or wheel drop, goal out of reach from where the base stopped), FAILED_NO_TILE, FAILED_GRASP
+(tile out of the arm's reach, gripper closed on nothing, tile dropped), FAILED_HARDWARE (a device
+stopped answering or reports a fault), CANCELED. The wheels are stopped on every exit.
+
+The robot is reached through :class:`M3Hardware`, so the same mission runs on the real drivers'
+topics or on anything else that provides them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hardware_drivers.arm_kinematics import ArmGeometry, UnreachableError, forward, top_down_grasp
+from hardware_drivers.base_navigation import GoToPose, GoToPoseParams, approach_pose
+from hardware_drivers.laser_scan import LaserScanData
+from hardware_drivers.planar_pose import Pose2D, wrap_angle
+from hardware_drivers.tile_localization import (
+    LocalizationParams,
+    explain_no_tile,
+    find_tile,
+    rotational_symmetry,
+)
+
+
+class Phase(IntEnum):
+    """tiling_assembly_msgs/action/PlaceTile feedback phases."""
+
+    DRIVING_TO_CACHE = 1
+    LOCATING_TILE = 2
+    PICKING = 3
+    DRIVING_TO_STRUCTURE = 4
+    PLACING = 5
+    RETREATING = 6
+
+
+class Outcome(IntEnum):
+    """tiling_assembly_msgs/action/PlaceTile result codes."""
+
+    SUCCEEDED = 0
+    FAILED_NAVIGATION = 1
+    FAILED_NO_TILE = 2
+    FAILED_GRASP = 3
+    FAILED_PRECONDITION = 4
+    FAILED_HARDWARE = 5
+    CANCELED = 6
+
+
+class MissionFailedError(Exception):
+    def __init__(self, outcome: Outcome, message: str) -> None:
+        super().__init__(message)
+        self.outcome = outcome
+        self.message = message
+
+
+class M3Hardware(Protocol):
+    """What the mission needs from the robot."""
+
+    def now(self) -> float: ...  # s, monotonic
+    def sleep(self, seconds: float) -> None: ...
+    def map_pose(self) -> Pose2D | None: ...  # base_link in the map; None until localized
+    def drive(self, linear: float, angular: float) -> None: ...
+    def stop(self) -> None: ...
+    def scan_after(self, stamp: float, timeout: float) -> LaserScanData | None: ...  # taken after stamp
+    def joints(self) -> Mapping[str, tuple[float, float]] | None: ...  # name -> (position, velocity)
+    def move_joints(self, goals: Mapping[str, float], duration: float) -> None: ...
+    def hazard(self) -> str | None: ...  # bumper pressed or wheel dropped
+    def fault(self) -> str | None: ...  # a device stopped answering or reports an error
+    def canceled(self) -> bool: ...
+
+
+@dataclass(frozen=True)
+class MissionConfig:
+    geometry: ArmGeometry = field(default_factory=ArmGeometry)
+    arm_joints: tuple[str, ...] = ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
+    gripper_joint: str = "gripper"
+    gripper_open: float = 0.6  # rad
+    gripper_closed: float = -0.6  # rad
+    carry_pose: tuple[float, ...] = (0.0, 1.2, -1.9, -0.8, 0.0)  # rad, arm joints while driving
+    # the arm base in base_link: x, y, z (m), yaw (rad)
+    arm_mount: tuple[float, float, float, float] = (0.10, 0.0, 0.07, 0.0)
+    laser_mount: tuple[float, float, float] = (0.16, 0.0, 0.0)  # x, y (m), yaw of the laser in base_link
+    pick_standoff: float = 0.35  # m from base_link to the cache point when stopping
+    place_standoff: float = 0.32  # m from base_link to the goal when stopping
+    preferred_reach: float = 0.22  # m from the arm base to the tile for picking
+    reach_tolerance: float = 0.05  # m
+    max_adjustments: int = 2
+    cache_search_radius: float = 0.2  # m around the cache point
+    scans_per_attempt: int = 3
+    approach_height: float = 0.05  # m above the grasp height
+    grasp_height_fraction: float = 0.5  # grasp at this fraction of the tile's height
+    release_clearance: float = 0.003  # m above the goal when opening the gripper
+    arm_speed: float = 0.8  # rad/s for planned moves
+    joint_tolerance: float = 0.04  # rad
+    arm_timeout: float = 6.0  # s beyond a move's planned duration
+    grasp_margin: float = 0.08  # rad: the gripper must stop this far from fully closed
+    navigation: GoToPoseParams = field(default_factory=GoToPoseParams)
+    navigation_timeout: float = 90.0  # s per drive
+    localization_timeout: float = 5.0  # s to wait for a first pose
+    retreat_distance: float = 0.10  # m backwards after placing
+    control_period: float = 0.05  # s
+    localization: LocalizationParams = field(default_factory=LocalizationParams)
+
+
+@dataclass(frozen=True)
+class PlaceGoal:
+    tile_id: int
+    tile_type: str
+    footprint: NDArray[np.float64]  # (N, 2) outline in the tile frame
+    height: float  # m
+    pose: Pose2D  # goal of the tile frame in the map
+    z: float  # m, goal height of the tile frame's origin (its bottom)
+    cache: tuple[float, float]  # m, the type's parts cache in the map
+
+
+@dataclass(frozen=True)
+class MissionResult:
+    outcome: Outcome
+    message: str
+    placed_pose: Pose2D | None = None
+    placed_z: float = 0.0
+    duration: float = 0.0
+
+
+Feedback = Callable[[Phase, float, Pose2D | None], None]
+
+
+class PlaceTileMission:
+    def __init__(self, hardware: M3Hardware, config: MissionConfig, feedback: Feedback | None = None,
+                 log: Callable[[str], None] | None = None) -> None:
+        self.hw = hardware
+        self.config = config
+        self.feedback = feedback or (lambda phase, progress, pose: None)
+        self.log = log or (lambda text: None)
+        mx, my, mz, myaw = config.arm_mount
+        self.arm_mount = Pose2D(mx, my, myaw)
+        self.arm_height = mz
+        self.laser_mount = Pose2D(*config.laser_mount)
+        self.phase = Phase.DRIVING_TO_CACHE
+
+    # ------------------------------------------------------------------ the mission
+    def run(self, goal: PlaceGoal) -> MissionResult:
+        start = self.hw.now()
+        try:
+            placed, z = self._run(goal)
+        except MissionFailedError as failure:
+            self.hw.stop()
+            return MissionResult(failure.outcome, failure.message, duration=self.hw.now() - start)
+        finally:
+            self.hw.stop()
+        return MissionResult(Outcome.SUCCEEDED, "", placed, z, self.hw.now() - start)
+
+    def _run(self, goal: PlaceGoal) -> tuple[Pose2D, float]:
+        cfg = self.config
+        self.phase = Phase.DRIVING_TO_CACHE
+        pose = self._wait_for_pose()
+        self._report(0.0)
+        self._move_arm({cfg.gripper_joint: cfg.gripper_open, **self._carry()},
+                       "carry pose with the gripper open")
+        stop = approach_pose(goal.cache[0], goal.cache[1], pose.x, pose.y, cfg.pick_standoff)
+        self._drive_to(stop, f"the {goal.tile_type} cache at ({goal.cache[0]:.2f}, {goal.cache[1]:.2f})")
+
+        self.phase = Phase.LOCATING_TILE
+        tile_in_arm = self._locate(goal)
+
+        self.phase = Phase.PICKING
+        offset = self._pick(goal, tile_in_arm)
+
+        self.phase = Phase.DRIVING_TO_STRUCTURE
+        pose = self._pose()
+        stop = approach_pose(goal.pose.x, goal.pose.y, pose.x, pose.y, cfg.place_standoff)
+        self._drive_to(stop, f"tile {goal.tile_id}'s place at ({goal.pose.x:.2f}, {goal.pose.y:.2f})")
+
+        self.phase = Phase.PLACING
+        placed, z, q_above = self._place(goal, offset)
+
+        self.phase = Phase.RETREATING
+        self._report(0.0)
+        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "lift from the placed tile")
+        self._move_arm(self._carry(), "carry pose")
+        pose = self._pose()
+        back = pose.compose(Pose2D(-cfg.retreat_distance, 0.0, 0.0))
+        self._drive_to(back, "the retreat pose")
+        self._report(1.0)
+        return placed, z
+
+    # ------------------------------------------------------------------ phases
+    def _locate(self, goal: PlaceGoal) -> Pose2D:
+        cfg = self.config
+        for attempt in range(cfg.max_adjustments + 1):
+            self._report(attempt / (cfg.max_adjustments + 1))
+            pose = self._pose()
+            cache_in_laser = pose.compose(self.laser_mount).inverse().transform_points(
+                np.array([goal.cache]))[0]
+            region = (float(cache_in_laser[0]), float(cache_in_laser[1]), cfg.cache_search_radius)
+            detection = None
+            reason = "no scan"
+            for _ in range(cfg.scans_per_attempt):
+                self._check()
+                scan = self.hw.scan_after(self.hw.now(), timeout=2.0)
+                if scan is None:
+                    raise MissionFailedError(Outcome.FAILED_HARDWARE,
+                                         "no laser scan for 2 s while locating the tile")
+                detection = find_tile(scan, goal.footprint, cfg.localization, region)
+                if detection is not None:
+                    break
+                reason = explain_no_tile(scan, goal.footprint, cfg.localization, region)
+            if detection is None:
+                raise MissionFailedError(
+                    Outcome.FAILED_NO_TILE,
+                    f"no {goal.tile_type} found by the laser near its cache ({reason})",
+                )
+            tile_in_base = self.laser_mount.compose(detection.pose)
+            tile_in_arm = self.arm_mount.inverse().compose(tile_in_base)
+            tile_map = pose.compose(tile_in_base)
+            self.log(f"found the {goal.tile_type} at {tile_map} in the map ({detection})")
+            reach = math.hypot(tile_in_arm.x, tile_in_arm.y)
+            bearing = math.atan2(tile_in_arm.y, tile_in_arm.x)
+            if abs(reach - cfg.preferred_reach) <= cfg.reach_tolerance and abs(bearing) < 0.6:
+                self._report(1.0)
+                return tile_in_arm
+            if attempt == cfg.max_adjustments:
+                break
+            # put the tile at the preferred reach straight ahead of the arm, then look again
+            standoff = self.arm_mount.x + cfg.preferred_reach
+            stop = approach_pose(tile_map.x, tile_map.y, pose.x, pose.y, standoff)
+            self.log(f"tile {reach:.2f} m from the arm at {math.degrees(bearing):.0f} deg: moving the base")
+            self._drive_to(stop, "a pose within the arm's reach of the tile", report=False)
+        raise MissionFailedError(
+            Outcome.FAILED_GRASP,
+            f"the {goal.tile_type} stays out of the arm's reach after {cfg.max_adjustments} moves",
+        )
+
+    def _pick(self, goal: PlaceGoal, tile_in_arm: Pose2D) -> float:
+        cfg = self.config
+        g = cfg.geometry
+        grasp_z = goal.height * cfg.grasp_height_fraction - self.arm_height
+        try:
+            q_above = top_down_grasp(g, tile_in_arm.x, tile_in_arm.y, grasp_z + cfg.approach_height,
+                                     tile_in_arm.yaw)
+            q_grasp = top_down_grasp(g, tile_in_arm.x, tile_in_arm.y, grasp_z, tile_in_arm.yaw)
+        except UnreachableError as error:
+            raise MissionFailedError(Outcome.FAILED_GRASP, f"tile out of the arm's reach: {error}") from None
+        self._report(0.1)
+        above = dict(zip(cfg.arm_joints, q_above, strict=True))
+        self._move_arm({**above, cfg.gripper_joint: cfg.gripper_open}, "above the tile")
+        self._report(0.3)
+        self._move_arm(dict(zip(cfg.arm_joints, q_grasp, strict=True)), "down to the tile")
+        self._report(0.5)
+        gripper = self._close_gripper()
+        if gripper - cfg.gripper_closed < cfg.grasp_margin:
+            self._move_arm({cfg.gripper_joint: cfg.gripper_open}, "open the empty gripper")
+            raise MissionFailedError(Outcome.FAILED_GRASP,
+                                 "the gripper closed on nothing: the tile was not grasped")
+        # the tile's yaw relative to the fingers, to place it the right way round
+        offset = wrap_angle(tile_in_arm.yaw - forward(g, q_grasp).grasp_yaw())
+        self._report(0.7)
+        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "lift the tile")
+        self._move_arm(self._carry(), "carry pose")
+        joints = self._joints()
+        if joints[cfg.gripper_joint][0] - cfg.gripper_closed < cfg.grasp_margin:
+            raise MissionFailedError(Outcome.FAILED_GRASP,
+                                     "the tile slipped out of the gripper while lifting")
+        self._report(1.0)
+        return offset
+
+    def _place(self, goal: PlaceGoal, offset: float) -> tuple[Pose2D, float, tuple[float, ...]]:
+        cfg = self.config
+        g = cfg.geometry
+        pose = self._pose()
+        goal_in_arm = pose.compose(self.arm_mount).inverse().compose(goal.pose)
+        z = goal.z + goal.height * cfg.grasp_height_fraction + cfg.release_clearance - self.arm_height
+        period = 2.0 * math.pi / rotational_symmetry(goal.footprint)
+        problems = []
+        solution = None
+        # a symmetric tile may be put down turned by its symmetry: pick a wrist roll that fits
+        for turn in sorted(range(-6, 7), key=abs):
+            yaw = wrap_angle(goal_in_arm.yaw - offset + turn * period)
+            try:
+                q_above = top_down_grasp(g, goal_in_arm.x, goal_in_arm.y, z + cfg.approach_height, yaw,
+                                         allow_flip=False)
+                q_place = top_down_grasp(g, goal_in_arm.x, goal_in_arm.y, z, yaw, allow_flip=False)
+                solution = (q_above, q_place)
+                break
+            except UnreachableError as error:
+                problems.append(str(error))
+            if period >= 2.0 * math.pi - 1e-9:
+                break
+        if solution is None:
+            raise MissionFailedError(
+                Outcome.FAILED_NAVIGATION,
+                f"the goal is out of the arm's reach from where the base stopped: {problems[0]}",
+            )
+        q_above, q_place = solution
+        self._report(0.1)
+        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "above the goal")
+        self._report(0.4)
+        self._move_arm(dict(zip(cfg.arm_joints, q_place, strict=True)), "down to the goal")
+        joints = self._joints()
+        measured = forward(g, [joints[name][0] for name in cfg.arm_joints])
+        pose = self._pose()
+        arm_in_map = pose.compose(self.arm_mount)
+        tool = arm_in_map.compose(Pose2D(measured.x, measured.y, measured.grasp_yaw() + offset))
+        grasp_height = goal.height * cfg.grasp_height_fraction
+        placed_z = measured.z + self.arm_height - grasp_height - cfg.release_clearance
+        self._report(0.7)
+        self._move_arm({cfg.gripper_joint: cfg.gripper_open}, "release the tile")
+        self._report(1.0)
+        self.log(f"placed tile {goal.tile_id} at {tool} (goal {goal.pose})")
+        return tool, placed_z, q_above
+
+    # ------------------------------------------------------------------ helpers
+    def _carry(self) -> dict[str, float]:
+        return dict(zip(self.config.arm_joints, self.config.carry_pose, strict=True))
+
+    def _report(self, progress: float) -> None:
+        self.feedback(self.phase, max(0.0, min(1.0, progress)), self.hw.map_pose())
+
+    def _check(self) -> None:
+        if self.hw.canceled():
+            self.hw.stop()
+            raise MissionFailedError(Outcome.CANCELED, "canceled")
+        fault = self.hw.fault()
+        if fault:
+            self.hw.stop()
+            raise MissionFailedError(Outcome.FAILED_HARDWARE, fault)
+
+    def _wait_for_pose(self) -> Pose2D:
+        """The first pose, once every device is heard from (they may still be starting up)."""
+        deadline = self.hw.now() + self.config.localization_timeout
+        while True:
+            if self.hw.canceled():
+                raise MissionFailedError(Outcome.CANCELED, "canceled")
+            pose, fault = self.hw.map_pose(), self.hw.fault()
+            if pose is not None and fault is None:
+                return pose
+            if self.hw.now() > deadline:
+                if fault is not None:
+                    raise MissionFailedError(Outcome.FAILED_HARDWARE, fault)
+                raise MissionFailedError(
+                    Outcome.FAILED_NAVIGATION,
+                    f"no pose of the base after {self.config.localization_timeout:g} s "
+                    "(needs odom and at least one overhead_pose)",
+                )
+            self.hw.sleep(self.config.control_period)
+
+    def _pose(self) -> Pose2D:
+        pose = self.hw.map_pose()
+        if pose is None:
+            raise MissionFailedError(Outcome.FAILED_HARDWARE, "lost the base's pose (odometry stopped)")
+        return pose
+
+    def _joints(self) -> Mapping[str, tuple[float, float]]:
+        joints = self.hw.joints()
+        needed = (*self.config.arm_joints, self.config.gripper_joint)
+        if joints is None or any(n not in joints for n in needed):
+            raise MissionFailedError(Outcome.FAILED_HARDWARE, "no fresh joint states from the arm")
+        return joints
+
+    def _drive_to(self, goal: Pose2D, what: str, report: bool = True) -> None:
+        cfg = self.config
+        controller = GoToPose(cfg.navigation)
+        start = self._pose()
+        initial = max(start.distance_to(goal), 1e-6)
+        deadline = self.hw.now() + cfg.navigation_timeout
+        while True:
+            self._check()
+            hazard = self.hw.hazard()
+            if hazard:
+                self.hw.stop()
+                raise MissionFailedError(Outcome.FAILED_NAVIGATION, f"stopped on the way to {what}: {hazard}")
+            pose = self._pose()
+            linear, angular, done = controller.command(pose, goal)
+            if done:
+                self.hw.stop()
+                return
+            if self.hw.now() > deadline:
+                self.hw.stop()
+                raise MissionFailedError(
+                    Outcome.FAILED_NAVIGATION,
+                    f"did not reach {what} within {cfg.navigation_timeout:g} s "
+                    f"({pose.distance_to(goal) * 100:.0f} cm away)",
+                )
+            self.hw.drive(linear, angular)
+            if report:
+                self._report(1.0 - pose.distance_to(goal) / initial)
+            self.hw.sleep(cfg.control_period)
+
+    def _move_arm(self, goals: Mapping[str, float], what: str) -> None:
+        cfg = self.config
+        joints = self._joints()
+        distance = max(abs(goals[n] - joints[n][0]) for n in goals)
+        duration = max(0.3, distance / cfg.arm_speed)
+        self.hw.move_joints(goals, duration)
+        deadline = self.hw.now() + duration + cfg.arm_timeout
+        gripper_only = set(goals) == {cfg.gripper_joint}
+        while True:
+            self._check()
+            joints = self._joints()
+            errors = {n: abs(goals[n] - joints[n][0]) for n in goals}
+            if all(e <= cfg.joint_tolerance for e in errors.values()):
+                return
+            planned_end = deadline - cfg.arm_timeout
+            stopped = abs(joints[cfg.gripper_joint][1]) < 1e-3
+            if gripper_only and self.hw.now() > planned_end + 0.3 and stopped:
+                return  # the gripper stopped (holding something, or it cannot open further)
+            if self.hw.now() > deadline:
+                worst = max(errors, key=errors.get)
+                raise MissionFailedError(
+                    Outcome.FAILED_HARDWARE,
+                    f"the arm did not reach {what}: {worst} is {errors[worst]:.2f} rad off after "
+                    f"{duration + cfg.arm_timeout:.1f} s",
+                )
+            self.hw.sleep(cfg.control_period)
+
+    def _close_gripper(self) -> float:
+        """Close the gripper until it reaches the closed angle or stops on the tile; its angle."""
+        cfg = self.config
+        name = cfg.gripper_joint
+        start = self._joints()[name][0]
+        duration = max(0.3, abs(start - cfg.gripper_closed) / cfg.arm_speed)
+        self.hw.move_joints({name: cfg.gripper_closed}, duration)
+        deadline = self.hw.now() + duration + cfg.arm_timeout
+        settle_from = self.hw.now() + 0.3
+        still_since: float | None = None
+        last = start
+        while True:
+            self._check()
+            position, velocity = self._joints()[name]
+            now = self.hw.now()
+            if abs(position - cfg.gripper_closed) <= cfg.joint_tolerance:
+                return position
+            if now > settle_from and abs(velocity) < 1e-3 and abs(position - last) < 0.005:
+                still_since = still_since or now
+                if now - still_since > 0.25:
+                    return position  # stopped on something
+            else:
+                still_since = None
+            last = position
+            if now > deadline:
+                return position
+            self.hw.sleep(cfg.control_period)

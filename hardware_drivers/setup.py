@@ -1,0 +1,38 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "hardware_drivers"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml", "README.md"]),
+        ("share/" + package_name + "/launch", glob("launch/*.launch.py")),
+        # the parameter files live in the repository's config/ (one place for every package)
+        ("share/" + package_name + "/config",
+         ["../config/hardware_drivers.yaml", "../config/crustcrawler_arm.yaml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="Tiling Assembly Engineering",
+    maintainer_email="engineering@tiling-assembly.example.com",
+    description="Drivers of the M3 robot (Create base, CrustCrawler arm, Hokuyo URG), tile localization, "
+    "the place-tile action server and device emulators.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "create_base = hardware_drivers.create_base_node:main",
+            "crustcrawler_arm = hardware_drivers.crustcrawler_arm_node:main",
+            "hokuyo_urg = hardware_drivers.hokuyo_urg_node:main",
+            "m3_robot = hardware_drivers.m3_robot_node:main",
+            "base_navigator = hardware_drivers.base_navigator_node:main",
+            "create_emulator = hardware_drivers.emulators.create_emulator:main",
+            "dynamixel_emulator = hardware_drivers.emulators.dynamixel_emulator:main",
+            "urg_emulator = hardware_drivers.emulators.urg_emulator:main",
+        ],
+    },
+)

@@ -1,0 +1,189 @@
+"""The M3 robot's place_tile action against the three device emulators, every part a real process.
+
+The Create emulator writes its true pose to a file; the URG emulator renders the scene (a long
+rectangle lying at its parts cache) from that pose, so the laser sees the tile from wherever the
+base has driven; the Dynamixel emulator's gripper servo stops on the tile when it closes. The test
+stands in for the overhead cameras: it publishes the true pose on overhead_pose.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+
+import pytest
+from processes import Emulator, NodeProcess
+from rclpy.action import ActionClient
+from ros_probe import OverheadCamera, shared_probe
+
+from hardware_drivers import dynamixel_protocol as dx
+from hardware_drivers.place_tile_mission import Outcome, Phase
+from tiling_assembly_msgs.action import PlaceTile
+
+pytestmark = pytest.mark.ros
+
+START = (0.0, -0.45, 0.3)  # the base's true pose at power-up (m, m, rad)
+CACHE = (0.0, -1.0)  # long_rectangle cache of paper_14
+TILE_AT_CACHE = (0.02, -1.01, 0.4)  # where the tile really lies (x, y, yaw)
+GOAL = (0.0, 0.0, 0.0, 0.0)  # tile 3 of paper_14: x, y, z, yaw
+LASER_MOUNT = "0.16,0.0,0.0"
+# quicker than the real robot's defaults, to keep the test short
+FAST_SERVOS = ("-p", "joint_max_velocities:=[3.0,3.0,3.0,3.0,3.0,3.0]")
+FAST = (*FAST_SERVOS, "-p", "arm_speed:=2.5", "-p", "max_linear:=0.3", "-p", "max_angular:=1.5")
+GRIPPER_ON_TILE = dx.radians_to_position(-0.2)  # servo position where the fingers meet a 4 cm tile
+
+
+@pytest.fixture(scope="module")
+def m3(tmp_path_factory: pytest.TempPathFactory):
+    directory = tmp_path_factory.mktemp("m3")
+    pose_file = directory / "true_pose"
+    create = Emulator("create", directory / "create", "--pose-file", str(pose_file),
+                      "--start-pose", ",".join(str(v) for v in START))
+    arm = Emulator("dynamixel", directory / "arm", "--stall", f"6:{GRIPPER_ON_TILE}")
+    urg = Emulator("urg", directory / "urg", "--robot-pose-file", str(pose_file),
+                   "--laser-mount", LASER_MOUNT, "--tile-pose", ",".join(str(v) for v in TILE_AT_CACHE),
+                   "--noise", "0.003")
+    arm_params = ("config/hardware_drivers.yaml", "config/crustcrawler_arm.yaml")
+    nodes = [
+        NodeProcess("create_base", directory, "-p", f"port:={directory / 'create'}"),
+        NodeProcess("crustcrawler_arm", directory, "-p", f"port:={directory / 'arm'}", *FAST_SERVOS,
+                    params_files=arm_params),
+        NodeProcess("hokuyo_urg", directory, "-p", f"port:={directory / 'urg'}"),
+        NodeProcess("m3_robot", directory, "-p", "structure_file:=config/structures/paper_14.yaml",
+                    "-p", f"laser_mount:=[{LASER_MOUNT}]", *FAST, params_files=arm_params),
+    ]
+    camera = OverheadCamera(pose_file, "/robot1/overhead_pose")
+    client = ActionClient(shared_probe().node, PlaceTile, "/robot1/place_tile")
+    assert client.wait_for_server(timeout_sec=30.0), "place_tile server did not come up"
+    for node in nodes[:3]:
+        node.wait_for_log("connected to the", timeout=20.0)
+    yield {"create": create, "arm": arm, "urg": urg, "nodes": {n.name: n for n in nodes}, "client": client}
+    camera.close()
+    client.destroy()
+    for node in nodes:
+        node.stop()
+    for emulator in (create, arm, urg):
+        emulator.close()
+    for node in nodes:
+        assert "Traceback" not in node.log(), f"{node.name} printed a traceback:\n{node.log()}"
+
+
+def _goal(tile_id: int = 3) -> PlaceTile.Goal:
+    goal = PlaceTile.Goal()
+    goal.tile_id = tile_id
+    goal.tile_type = "long_rectangle"
+    goal.pose.header.frame_id = "map"
+    goal.pose.pose.position.x, goal.pose.pose.position.y, goal.pose.pose.position.z = GOAL[:3]
+    goal.pose.pose.orientation.z, goal.pose.pose.orientation.w = math.sin(GOAL[3] / 2), math.cos(GOAL[3] / 2)
+    goal.cache.x, goal.cache.y = CACHE
+    return goal
+
+
+def _run_goal(client: ActionClient, goal: PlaceTile.Goal, timeout: float,
+              cancel_in_phase: int | None = None) -> tuple[PlaceTile.Result, list, float | None]:
+    feedback: list[PlaceTile.Feedback] = []
+    sent = client.send_goal_async(goal, feedback_callback=lambda f: feedback.append(f.feedback))
+    deadline = time.monotonic() + 10.0
+    while not sent.done():
+        assert time.monotonic() < deadline, "goal not accepted in time"
+        time.sleep(0.02)
+    handle = sent.result()
+    assert handle.accepted
+    result_future = handle.get_result_async()
+    deadline = time.monotonic() + timeout
+    canceled_at = None
+    while not result_future.done():
+        assert time.monotonic() < deadline, f"no result within {timeout} s; last phases {feedback[-3:]}"
+        latest = feedback[-1] if feedback else None
+        if cancel_in_phase is not None and canceled_at is None and latest is not None \
+                and latest.phase == cancel_in_phase and latest.phase_progress > 0.1:
+            canceled_at = time.monotonic()
+            handle.cancel_goal_async()
+        time.sleep(0.02)
+    return result_future.result().result, feedback, canceled_at
+
+
+def test_place_tile_completes_against_the_emulators(m3) -> None:
+    result, feedback, _ = _run_goal(m3["client"], _goal(), timeout=120.0)
+    assert result.error_code == PlaceTile.Result.SUCCEEDED, result.message
+    assert result.message == ""
+    phases = [f.phase for f in feedback]
+    order = [p for i, p in enumerate(phases) if i == 0 or phases[i - 1] != p]
+    assert order == [Phase.DRIVING_TO_CACHE, Phase.LOCATING_TILE, Phase.PICKING, Phase.DRIVING_TO_STRUCTURE,
+                     Phase.PLACING, Phase.RETREATING]
+    placed = result.placed_pose.pose
+    assert result.placed_pose.header.frame_id == "map"
+    assert math.hypot(placed.position.x - GOAL[0], placed.position.y - GOAL[1]) < 0.02
+    assert abs(placed.position.z - GOAL[2]) < 0.01
+    placed_yaw = 2 * math.atan2(placed.orientation.z, placed.orientation.w)
+    # a long rectangle looks the same turned by pi
+    assert abs(math.remainder(placed_yaw - GOAL[3], math.pi)) < math.radians(5)
+    assert result.duration > 0
+    # the laser found the tile where it really lies, within 1 cm
+    log = m3["nodes"]["m3_robot"].log()
+    found = re.search(r"found the long_rectangle at \(([-\d.]+) m, ([-\d.]+) m, ([-\d.]+) deg\)", log)
+    assert found, log
+    x, y, yaw = (float(v) for v in found.groups())
+    assert math.hypot(x - TILE_AT_CACHE[0], y - TILE_AT_CACHE[1]) < 0.01
+    assert abs(math.remainder(math.radians(yaw) - TILE_AT_CACHE[2], math.pi)) < math.radians(5)
+    # the gripper closed on the tile, and the wheels are stopped at the end
+    assert any(text.startswith(f"goal 6 {dx.radians_to_position(-0.6)}") for _, text in m3["arm"].lines)
+    drives = [text for _, text in m3["create"].lines if text.startswith("drive ")]
+    assert drives and drives[-1].startswith("drive 0 0")
+
+
+def test_no_tile_at_the_cache_fails_with_no_tile(m3) -> None:
+    m3["urg"].send("tile none")
+    m3["urg"].wait_for("tile none")
+    try:
+        result, feedback, _ = _run_goal(m3["client"], _goal(), timeout=60.0)
+    finally:
+        m3["urg"].send("tile " + ",".join(str(v) for v in TILE_AT_CACHE))
+    assert result.error_code == PlaceTile.Result.FAILED_NO_TILE
+    assert "no long_rectangle found by the laser near its cache" in result.message
+    assert "\n" not in result.message
+    assert feedback[-1].phase == Phase.LOCATING_TILE
+    assert Outcome.FAILED_NO_TILE == PlaceTile.Result.FAILED_NO_TILE
+
+
+def test_a_gripper_closing_on_nothing_fails_with_grasp_error(m3) -> None:
+    m3["arm"].send("stall 6 none")  # no tile between the fingers
+    m3["arm"].wait_for("stall 6 none")
+    try:
+        result, feedback, _ = _run_goal(m3["client"], _goal(), timeout=60.0)
+    finally:
+        m3["arm"].send(f"stall 6 {GRIPPER_ON_TILE}")
+    assert result.error_code == PlaceTile.Result.FAILED_GRASP
+    assert result.message == "the gripper closed on nothing: the tile was not grasped"
+    assert feedback[-1].phase == Phase.PICKING
+
+
+def test_cancel_stops_the_wheels(m3) -> None:
+    goal = _goal()
+    goal.cache.x, goal.cache.y = 1.5, 1.5  # far away: the cancel comes while driving
+    m3["create"].drain()
+    result, _, canceled_at = _run_goal(m3["client"], goal, timeout=60.0,
+                                              cancel_in_phase=Phase.DRIVING_TO_CACHE)
+    assert canceled_at is not None
+    assert result.error_code == PlaceTile.Result.CANCELED
+    assert result.message == "canceled"
+    drives = [(float(text.split("t=")[1]), text) for _, text in m3["create"].lines
+              if text.startswith("drive ")]
+    before = [text for t, text in drives if t < canceled_at]
+    assert before and not before[-1].startswith("drive 0 0"), "the base was not moving when the cancel came"
+    after = [(t, text) for t, text in drives if t >= canceled_at]
+    assert after and after[-1][1].startswith("drive 0 0"), "the wheels were left turning after the cancel"
+    assert after[-1][0] - canceled_at < 2.0
+
+
+def test_a_device_that_stops_answering_fails_with_hardware_error(m3) -> None:
+    m3["arm"].send("unplug 0")
+    m3["nodes"]["crustcrawler_arm"].wait_for_log("CrustCrawler arm lost", timeout=10.0)
+    try:
+        result, _, _ = _run_goal(m3["client"], _goal(), timeout=30.0)
+    finally:
+        m3["arm"].send("plug")
+    assert result.error_code == PlaceTile.Result.FAILED_HARDWARE
+    assert result.message.startswith("crustcrawler_arm")
+    m3["nodes"]["crustcrawler_arm"].wait_for_log("connected to the CrustCrawler arm", timeout=10.0, count=2)
