@@ -9,6 +9,8 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        # the parameter files live in the repository's config/ (one place for every package)
+        ("share/" + package_name + "/config", ["../config/" + package_name + ".yaml"]),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 package_name = "vi_node"
@@ -9,6 +11,9 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", glob("launch/*.launch.py")),
+        # the parameter files live in the repository's config/ (one place for every package)
+        ("share/" + package_name + "/config", ["../config/" + package_name + ".yaml"]),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
