@@ -14,7 +14,7 @@ setup(
     zip_safe=True,
     maintainer="Tiling Assembly Engineering",
     maintainer_email="engineering@tiling-assembly.example.com",
-    description="Simulation of the tiling assembly testbed: Kinect simulator, scan bags, replay, experiments.",
+    description="Simulation of the tiling assembly testbed: Kinect simulator, scan bags, replay, experiments",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
