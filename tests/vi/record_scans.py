@@ -32,7 +32,14 @@ RECORDINGS = {
 }
 
 
-def record(name: str, removed: tuple[int, ...], size: tuple[int, int], clutter: bool, views: list[tuple[float, float]], seed: int) -> Path:
+def record(
+    name: str,
+    removed: tuple[int, ...],
+    size: tuple[int, int],
+    clutter: bool,
+    views: list[tuple[float, float]],
+    seed: int,
+) -> Path:
     structure = load_structure(REPO / STRUCTURE)
     rng = np.random.default_rng(seed)
     items = tuple(random_clutter(structure, rng)) if clutter else ()

@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from vi_helpers import structure
 
 from tiling_assembly.geometry import rotation_from_rpy, rpy_from_rotation
 from tiling_sim.kinect import KinectNoise, KinectScene, KinectSimulator, camera_pose
-from vi_helpers import structure
 from vi_node.camera_model import OPTICAL_FROM_LINK, PinholeCamera
 from vi_node.candidates import select_candidates
 from vi_node.coarse_alignment import CoarseAligner
@@ -86,7 +86,9 @@ def test_patch_projection_matches_a_brute_force_closest_point() -> None:
     assert found.sum() > 1500
     assert np.allclose(projection.distance[found], reference[found], atol=1e-6)
     assert np.all(reference[~found] > 0.05 - 1e-6)  # none missed within the distance asked for
-    assert np.allclose(np.linalg.norm(projection.closest[found] - points[found], axis=1), projection.distance[found])
+    assert np.allclose(
+        np.linalg.norm(projection.closest[found] - points[found], axis=1), projection.distance[found]
+    )
 
 
 def test_hierarchy_skips_far_points_and_faces_turned_away() -> None:
@@ -108,7 +110,9 @@ def structure_points(seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Points an ideal Kinect sees of the paper structure, and the camera pose."""
     paper = structure()
     pose = camera_pose(-0.8, -0.7, math.radians(40.0), MOUNT.xyz, MOUNT.rpy)
-    cloud, labels = KinectSimulator(seed=seed, noise=KinectNoise(lateral=False)).scan_labelled(KinectScene.from_structure(paper), pose)
+    cloud, labels = KinectSimulator(seed=seed, noise=KinectNoise(lateral=False)).scan_labelled(
+        KinectScene.from_structure(paper), pose
+    )
     points = cloud[labels > 0].astype(float) @ pose[:3, :3].T + pose[:3, 3]
     return points, pose
 
@@ -164,11 +168,15 @@ def test_candidates_are_the_points_in_the_structure_box_above_the_floor() -> Non
 def test_virtual_scan_matches_the_simulated_kinect_without_noise() -> None:
     paper = structure()
     pose = camera_pose(0.9, 0.5, math.radians(-150.0), MOUNT.xyz, MOUNT.rpy)
-    cloud, labels = KinectSimulator(noise=KinectNoise.ideal()).scan_labelled(KinectScene.from_structure(paper), pose)
+    cloud, labels = KinectSimulator(noise=KinectNoise.ideal()).scan_labelled(
+        KinectScene.from_structure(paper), pose
+    )
     scene = VirtualScene(list(paper.tiles.values()))
     rows, cols = CAMERA.box_roi(pose, *paper.bounds)
     virtual = scene.cast(CAMERA, pose, rows, cols, 0.5, 4.5)
-    ids = np.where(virtual.tile >= 0, scene.tile_ids[np.maximum(virtual.tile, 0)], np.where(virtual.tile == FLOOR, 0, -2))
+    ids = np.where(
+        virtual.tile >= 0, scene.tile_ids[np.maximum(virtual.tile, 0)], np.where(virtual.tile == FLOOR, 0, -2)
+    )
     window = labels[rows, cols]
     assert (ids == window).mean() > 0.999
     assert (window > 0).sum() == (labels > 0).sum()  # the window holds every structure pixel

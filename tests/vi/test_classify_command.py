@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
+from vi_helpers import REPO, SCANS, STRUCTURES, ros2_run
 
 from tiling_sim.scan_bag import ScanBagWriter, read_truth
-from vi_helpers import REPO, SCANS, STRUCTURES, ros2_run
 
 PAPER = str(STRUCTURES / "paper_14.yaml")
 STATES = {"present", "missing", "occluded"}
@@ -55,7 +55,9 @@ def test_expected_tiles_and_parameter_file(tmp_path: Path) -> None:
 def test_wrong_camera_mount_gives_errors_not_wrong_states() -> None:
     lines, stderr, code = classify("--bag", str(SCANS / "paper_vga"), "--camera-xyz", "0.08,0.6,0.55")
     assert code == 0
-    assert len(lines) == 2 and all(line["tiles"] == {} and "alignment failed" in line["error"] for line in lines)
+    assert len(lines) == 2 and all(
+        line["tiles"] == {} and "alignment failed" in line["error"] for line in lines
+    )
     assert len(stderr.strip().splitlines()) == 2 and "Traceback" not in stderr
 
 
@@ -72,7 +74,9 @@ def test_bad_arguments_files_and_bags(tmp_path: Path) -> None:
     one_line_error(["--bag", str(SCANS / "paper_vga"), "--mode", "fast"], 2, "invalid choice")
     bad_structure = tmp_path / "bad.yaml"
     bad_structure.write_text("name: x\n")
-    result = ros2_run("vi_node", "classify", "--structure", str(bad_structure), "--bag", str(SCANS / "paper_vga"))
+    result = ros2_run(
+        "vi_node", "classify", "--structure", str(bad_structure), "--bag", str(SCANS / "paper_vga")
+    )
     assert result.returncode == 2 and result.stderr.count("\n") == 1 and str(bad_structure) in result.stderr
     (tmp_path / "empty").mkdir()
     one_line_error(["--bag", str(tmp_path / "empty")], 1, "cannot open the bag")
@@ -124,8 +128,16 @@ def test_reads_sqlite3_bags_with_a_driver_style_cloud_layout(tmp_path: Path) -> 
     stamp = types["builtin_interfaces/msg/Time"](sec=7, nanosec=0)
     scan = types["sensor_msgs/msg/PointCloud2"](
         header=types["std_msgs/msg/Header"](stamp=stamp, frame_id="camera_depth_optical_frame"),
-        height=480, width=640, is_bigendian=False, point_step=16, row_step=16 * 640, is_dense=False,
-        fields=[types["sensor_msgs/msg/PointField"](name=n, offset=4 * k, datatype=7, count=1) for k, n in enumerate("xyz")],
+        height=480,
+        width=640,
+        is_bigendian=False,
+        point_step=16,
+        row_step=16 * 640,
+        is_dense=False,
+        fields=[
+            types["sensor_msgs/msg/PointField"](name=n, offset=4 * k, datatype=7, count=1)
+            for k, n in enumerate("xyz")
+        ],
         data=padded.reshape(-1).view(np.uint8),
     )
     x, y, yaw = view["overhead"]
@@ -133,7 +145,9 @@ def test_reads_sqlite3_bags_with_a_driver_style_cloud_layout(tmp_path: Path) -> 
         header=types["std_msgs/msg/Header"](stamp=stamp, frame_id="map"),
         pose=types["geometry_msgs/msg/Pose"](
             position=types["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
-            orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
+            orientation=types["geometry_msgs/msg/Quaternion"](
+                x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
+            ),
         ),
     )
     path = tmp_path / "humble_bag"

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from vi_helpers import structure
 
 from tiling_sim.kinect import (
     CLUTTER_LABEL,
@@ -18,7 +19,6 @@ from tiling_sim.kinect import (
     KinectSimulator,
     camera_pose,
 )
-from vi_helpers import structure
 
 LEVEL = camera_pose(0.0, 0.0, 0.0, (0.0, 0.0, 0.5), (0.0, 0.0, 0.0))  # 0.5 m high, looking along +x
 
@@ -28,14 +28,18 @@ def wall(distance: float) -> ClutterBox:
 
 
 def test_optical_frame_is_z_forward_x_right_y_down() -> None:
-    scene = KinectScene(clutter=[ClutterBox((1.0, 0.3, 0.5), (0.1, 0.1, 0.1))], floor=False)  # ahead, to the left
+    scene = KinectScene(
+        clutter=[ClutterBox((1.0, 0.3, 0.5), (0.1, 0.1, 0.1))], floor=False
+    )  # ahead, to the left
     cloud, labels = KinectSimulator(noise=KinectNoise.ideal()).scan_labelled(scene, LEVEL)
     rows, cols = np.nonzero(labels == CLUTTER_LABEL)
     assert len(rows) > 100
     assert cols.max() < KINECT_V1_DEPTH.cx  # left in the image ...
     points = cloud[rows, cols]
     assert np.all(points[:, 0] < 0)  # ... is -x in the optical frame
-    assert abs(np.median(points[:, 2]) - 0.95) < 1e-4 and points[:, 2].min() > 0.95 - 1e-4  # depth of its face
+    assert (
+        abs(np.median(points[:, 2]) - 0.95) < 1e-4 and points[:, 2].min() > 0.95 - 1e-4
+    )  # depth of its face
     assert abs(np.median(points[:, 1])) < 0.01  # at camera height: y ~ 0 (y points down)
 
 
@@ -66,7 +70,9 @@ def test_axial_noise_and_disparity_quantisation_follow_the_model(distance: float
 def test_projector_shadow_falls_left_of_an_object() -> None:
     scene = KinectScene(clutter=[wall(2.0), ClutterBox((1.0, 0.0, 0.5), (0.04, 0.04, 1.0))], floor=False)
     ideal = KinectSimulator(noise=KinectNoise.ideal()).scan(scene, LEVEL)
-    shadowed = KinectSimulator(noise=KinectNoise(lateral=False, axial=False, edge_dropout=0.0, speckle_dropout=0.0)).scan(scene, LEVEL)
+    shadowed = KinectSimulator(
+        noise=KinectNoise(lateral=False, axial=False, edge_dropout=0.0, speckle_dropout=0.0)
+    ).scan(scene, LEVEL)
     row = 240
     pole = np.flatnonzero(ideal[row, :, 2] < 1.5)
     lost = np.flatnonzero(np.isnan(shadowed[row, :, 2]))

@@ -25,7 +25,11 @@ def test_virtual_but_no_physical_support_is_missing() -> None:
 
 def test_ratio_at_or_below_threshold_is_missing() -> None:
     # v_i != 0, p_i != 0, r <= t_r => missing, in both directions of the ratio
-    assert states([280, 400, 1000], [400, 280, 400]) == [TileState.MISSING, TileState.MISSING, TileState.MISSING]
+    assert states([280, 400, 1000], [400, 280, 400]) == [
+        TileState.MISSING,
+        TileState.MISSING,
+        TileState.MISSING,
+    ]
     _, ratio = classify_paper(np.array([280]), np.array([400]))
     assert ratio[0] == pytest.approx(0.7)
 
@@ -37,7 +41,11 @@ def test_ratio_above_threshold_is_present() -> None:
 
 def test_support_below_100_points_counts_as_zero() -> None:
     # 99 virtual points are no virtual support (occluded); 99 physical points are none (missing)
-    assert states([500, 99, 100], [99, 400, 100]) == [TileState.OCCLUDED, TileState.MISSING, TileState.PRESENT]
+    assert states([500, 99, 100], [99, 400, 100]) == [
+        TileState.OCCLUDED,
+        TileState.MISSING,
+        TileState.PRESENT,
+    ]
 
 
 def test_thresholds_are_parameters() -> None:

@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
+from vi_helpers import structure
 
 from tiling_sim.inspection_scenarios import Scene, ViewSettings, view_from
 from tiling_sim.kinect import KINECT_V1_DEPTH, ClutterBox, KinectScene, KinectSimulator
-from vi_helpers import structure
 from vi_node.classify import TileState
 from vi_node.inspection_settings import InspectionSettings
 from vi_node.pipeline import InspectionPipeline
@@ -22,8 +22,11 @@ PAPER = InspectionSettings()
 def worst_overhead(base: tuple[float, float, float], rng: np.random.Generator) -> OverheadPose:
     """The overhead pose at the paper's error bounds: 5 cm away and 10 degrees turned."""
     angle = rng.uniform(0, 2 * math.pi)
-    return OverheadPose(base[0] + 0.05 * math.cos(angle), base[1] + 0.05 * math.sin(angle),
-                        base[2] + rng.choice([-1.0, 1.0]) * math.radians(10.0))
+    return OverheadPose(
+        base[0] + 0.05 * math.cos(angle),
+        base[1] + 0.05 * math.sin(angle),
+        base[2] + rng.choice([-1.0, 1.0]) * math.radians(10.0),
+    )
 
 
 @pytest.mark.parametrize("name", ["paper_14", "gate_9"])

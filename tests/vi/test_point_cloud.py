@@ -19,9 +19,18 @@ def sample_cloud(height: int = 48, width: int = 64) -> np.ndarray:
     return cloud
 
 
-def ros_message(data: bytes, height: int, width: int, fields: list[tuple[str, int, int]], point_step: int,
-                row_step: int, big_endian: bool = False) -> PointCloud2:
-    msg = PointCloud2(height=height, width=width, point_step=point_step, row_step=row_step, is_bigendian=big_endian)
+def ros_message(
+    data: bytes,
+    height: int,
+    width: int,
+    fields: list[tuple[str, int, int]],
+    point_step: int,
+    row_step: int,
+    big_endian: bool = False,
+) -> PointCloud2:
+    msg = PointCloud2(
+        height=height, width=width, point_step=point_step, row_step=row_step, is_bigendian=big_endian
+    )
     msg.fields = [PointField(name=n, offset=o, datatype=t, count=1) for n, o, t in fields]
     msg.data = array.array("B", data)
     return msg
@@ -59,14 +68,28 @@ def test_a_rosbags_message_reads_the_same() -> None:
     store = get_typestore(Stores.ROS2_JAZZY)
     types = store.types
     cloud = sample_cloud()
-    fields = [types["sensor_msgs/msg/PointField"](name=n, offset=4 * k, datatype=7, count=1) for k, n in enumerate("xyz")]
-    header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=1, nanosec=2), frame_id="f")
+    fields = [
+        types["sensor_msgs/msg/PointField"](name=n, offset=4 * k, datatype=7, count=1)
+        for k, n in enumerate("xyz")
+    ]
+    header = types["std_msgs/msg/Header"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=1, nanosec=2), frame_id="f"
+    )
     msg = types["sensor_msgs/msg/PointCloud2"](
-        header=header, height=48, width=64, fields=fields, is_bigendian=False, point_step=12, row_step=768,
-        data=np.frombuffer(cloud_bytes(cloud), dtype=np.uint8), is_dense=False,
+        header=header,
+        height=48,
+        width=64,
+        fields=fields,
+        is_bigendian=False,
+        point_step=12,
+        row_step=768,
+        data=np.frombuffer(cloud_bytes(cloud), dtype=np.uint8),
+        is_dense=False,
     )
     raw = store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")
-    assert np.array_equal(cloud_from_msg(store.deserialize_cdr(raw, "sensor_msgs/msg/PointCloud2")), cloud, equal_nan=True)
+    assert np.array_equal(
+        cloud_from_msg(store.deserialize_cdr(raw, "sensor_msgs/msg/PointCloud2")), cloud, equal_nan=True
+    )
 
 
 @pytest.mark.parametrize(
@@ -82,8 +105,14 @@ def test_a_rosbags_message_reads_the_same() -> None:
 )
 def test_unreadable_clouds_raise_a_one_line_reason(change: dict, reason: str) -> None:  # type: ignore[type-arg]
     cloud = sample_cloud()
-    spec = dict(data=cloud_bytes(cloud), height=48, width=64, fields=[("x", 0, 7), ("y", 4, 7), ("z", 8, 7)],
-                point_step=12, row_step=768)
+    spec = dict(
+        data=cloud_bytes(cloud),
+        height=48,
+        width=64,
+        fields=[("x", 0, 7), ("y", 4, 7), ("z", 8, 7)],
+        point_step=12,
+        row_step=768,
+    )
     spec.update(change)
     msg = ros_message(**spec)  # type: ignore[arg-type]
     with pytest.raises(CloudError, match=reason):

@@ -9,9 +9,9 @@ import numpy as np
 import yaml
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
+from vi_helpers import SCANS
 
 from tiling_sim.scan_bag import CLOUD_TOPIC, POSE_TOPIC, ScanBagWriter, read_truth
-from vi_helpers import SCANS
 from vi_node.classify_bag import read_recording
 from vi_node.point_cloud import cloud_from_msg
 
@@ -32,7 +32,9 @@ def test_written_bag_reads_back_with_rosbags(tmp_path: Path) -> None:
     store = get_typestore(Stores.ROS2_JAZZY)
     with Reader(path) as reader:
         assert {c.topic: c.msgtype for c in reader.connections} == {
-            CLOUD_TOPIC: "sensor_msgs/msg/PointCloud2", POSE_TOPIC: "geometry_msgs/msg/PoseStamped"}
+            CLOUD_TOPIC: "sensor_msgs/msg/PointCloud2",
+            POSE_TOPIC: "geometry_msgs/msg/PoseStamped",
+        }
         messages = [(c.topic, t, store.deserialize_cdr(raw, c.msgtype)) for c, t, raw in reader.messages()]
     assert [m[0] for m in messages] == [POSE_TOPIC, CLOUD_TOPIC, POSE_TOPIC, CLOUD_TOPIC]
     scan = messages[3][2]

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 import yaml
-
 from vi_helpers import REPO
+
 from vi_node.inspection_settings import InspectionSettings, SettingsError, load_settings
 
 

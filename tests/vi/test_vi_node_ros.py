@@ -22,12 +22,12 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader
 from sensor_msgs.msg import PointCloud2, PointField
-from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, TileStateArray
+from vi_helpers import REPO, SCANS, STRUCTURES, ros2_command, ros2_run, structure
 from visualization_msgs.msg import MarkerArray
 
 from tiling_assembly.messages import structure_to_msg
+from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, TileStateArray
 from tiling_sim.scan_bag import read_truth
-from vi_helpers import REPO, SCANS, STRUCTURES, ros2_command, ros2_run, structure
 
 pytestmark = pytest.mark.ros
 
@@ -67,12 +67,17 @@ class Probe:
         self.node.create_subscription(TileStateArray, "/tile_states", self.states.append, 10)
         self.node.create_subscription(MarkerArray, "/tile_markers", self.markers.append, 10)
         self.node.create_subscription(
-            DiagnosticArray, "/diagnostics", lambda m: self.diagnostics.extend(s.message for s in m.status), 50
+            DiagnosticArray,
+            "/diagnostics",
+            lambda m: self.diagnostics.extend(s.message for s in m.status),
+            50,
         )
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.cloud = self.node.create_publisher(PointCloud2, "/vi/camera/depth/points", reliable)
         self.pose = self.node.create_publisher(PoseStamped, "/vi/overhead_pose", reliable)
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(
+            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+        )
         from tiling_assembly_msgs.msg import Structure
 
         self.structure = self.node.create_publisher(Structure, "/structure", latched)
@@ -110,11 +115,30 @@ def test_replayed_scans_give_the_same_states_as_the_offline_command(probe: Probe
     bag = str(SCANS / "paper_vga")
     truth = read_truth(bag)
     with vi_node(f"structure_file:={PAPER}", "mode:=paper") as node:
-        assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), "vi_node did not start"
+        assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), (
+            "vi_node did not start"
+        )
         replay = subprocess.run(
-            [ros2_command(), "run", "tiling_sim", "replay_bag", "--bag", bag, "--rate", "0", "--gap", "1.0",
-             "--wait-subscribers", "20", "--start-delay", "1.5"],
-            cwd=REPO, capture_output=True, text=True, timeout=60,
+            [
+                ros2_command(),
+                "run",
+                "tiling_sim",
+                "replay_bag",
+                "--bag",
+                bag,
+                "--rate",
+                "0",
+                "--gap",
+                "1.0",
+                "--wait-subscribers",
+                "20",
+                "--start-delay",
+                "1.5",
+            ],
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=60,
         )
         assert replay.returncode == 0, replay.stderr
         assert "published 4 messages" in replay.stdout
@@ -125,11 +149,16 @@ def test_replayed_scans_give_the_same_states_as_the_offline_command(probe: Probe
     for msg, line, scan in zip(probe.states, expected, truth["scans"], strict=True):
         assert msg.header.stamp.sec + msg.header.stamp.nanosec / 1e9 == pytest.approx(scan["stamp_ns"] / 1e9)
         assert msg.header.frame_id == "map" and msg.scan_count == 1
-        got = {str(s.tile_id): (STATE_NAMES[s.state], s.physical_support, s.virtual_support) for s in msg.states}
+        got = {
+            str(s.tile_id): (STATE_NAMES[s.state], s.physical_support, s.virtual_support) for s in msg.states
+        }
         assert got == {k: (v["state"], v["physical"], v["virtual"]) for k, v in line["tiles"].items()}
         assert got["10"][0] == got["13"][0] == "missing"
         camera = scan["view"]["camera"]
-        assert abs(msg.camera_pose.position.x - camera[0][3]) < 0.02 and abs(msg.camera_pose.position.y - camera[1][3]) < 0.02
+        assert (
+            abs(msg.camera_pose.position.x - camera[0][3]) < 0.02
+            and abs(msg.camera_pose.position.y - camera[1][3]) < 0.02
+        )
         assert 0 < msg.alignment_rms < 0.01
     markers = {m.id: m for m in probe.markers[-1].markers if m.action == m.ADD}
     assert sorted(markers) == list(range(1, 15))
@@ -165,7 +194,9 @@ def test_bad_input_and_the_expected_structure_over_ros(probe: Probe) -> None:
         send(cloud, lambda: any("no structure yet" in m for m in probe.diagnostics))
         probe.structure.publish(structure_to_msg(paper))
         for tile in (1, 2, 3, 4, 5, 6, 7, 12):
-            probe.reports.publish(PlacementReport(tile_id=tile, outcome=PlacementReport.OUTCOME_PLACED, robot_name="robot1"))
+            probe.reports.publish(
+                PlacementReport(tile_id=tile, outcome=PlacementReport.OUTCOME_PLACED, robot_name="robot1")
+            )
         probe.spin_until(lambda: False, 1.0)
 
         nan_cloud = deserialize_message(bytes(_serialize(cloud)), PointCloud2)
@@ -175,7 +206,10 @@ def test_bad_input_and_the_expected_structure_over_ros(probe: Probe) -> None:
         wrong_frame.header.frame_id = "base_link"
         send(wrong_frame, lambda: any("frame 'base_link'" in m for m in probe.diagnostics))
         no_z = deserialize_message(bytes(_serialize(cloud)), PointCloud2)
-        no_z.fields = [PointField(name="x", offset=0, datatype=7, count=1), PointField(name="y", offset=4, datatype=7, count=1)]
+        no_z.fields = [
+            PointField(name="x", offset=0, datatype=7, count=1),
+            PointField(name="y", offset=4, datatype=7, count=1),
+        ]
         send(no_z, lambda: any("no z field" in m for m in probe.diagnostics))
         assert probe.states == []  # nothing wrong was published
 
@@ -204,13 +238,19 @@ def _serialize(msg: Any) -> bytes:
 
 @pytest.mark.parametrize(
     "param, text",
-    [("mode:=clever", "parameter 'mode' must be one of"), ("structure_file:=/nonexistent.yaml", "structure_file:"),
-     ("camera_xyz:=[1.0, 2.0]", "camera_xyz")],
+    [
+        ("mode:=clever", "parameter 'mode' must be one of"),
+        ("structure_file:=/nonexistent.yaml", "structure_file:"),
+        ("camera_xyz:=[1.0, 2.0]", "camera_xyz"),
+    ],
 )
 def test_bad_parameters_stop_the_node_with_one_line(param: str, text: str) -> None:
     result = subprocess.run(
         [ros2_command(), "run", "vi_node", "vi_node", "--ros-args", "-p", param],
-        cwd=REPO, capture_output=True, text=True, timeout=60,
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert result.returncode != 0
     lines = [line for line in result.stderr.strip().splitlines() if line]

@@ -31,10 +31,14 @@ def ros2_command() -> str:
 
 
 def ros2_run(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([ros2_command(), "run", *args], capture_output=True, text=True, timeout=timeout, cwd=REPO)
+    return subprocess.run(
+        [ros2_command(), "run", *args], capture_output=True, text=True, timeout=timeout, cwd=REPO
+    )
 
 
-def overhead_with_error(view_base: tuple[float, float, float], shift: float, turn: float, angle: float) -> tuple[float, float, float]:
+def overhead_with_error(
+    view_base: tuple[float, float, float], shift: float, turn: float, angle: float
+) -> tuple[float, float, float]:
     """An overhead pose `shift` m (in direction `angle`) and `turn` rad off the true base pose."""
     x, y, yaw = view_base
     return x + shift * math.cos(angle), y + shift * math.sin(angle), yaw + turn

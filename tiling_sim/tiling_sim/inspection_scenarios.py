@@ -13,6 +13,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 
 import networkx as nx
 import numpy as np
@@ -24,6 +25,19 @@ from tiling_assembly.structure import Structure
 from tiling_sim.kinect import ClutterBox, KinectScene, camera_pose
 
 Array = NDArray[np.float64]
+
+
+def structure_path(name: str) -> Path:
+    """A structure file by path, or by name in config/structures (of the working directory, else of
+    the source tree this package was built from)."""
+    if name.endswith((".yaml", ".yml")):
+        return Path(name)
+    for root in (Path.cwd(), Path(__file__).resolve().parents[2]):
+        candidate = root / "config" / "structures" / f"{name}.yaml"
+        if candidate.exists():
+            return candidate
+    return Path("config") / "structures" / f"{name}.yaml"
+
 
 # The VI robot's Kinect mount (camera_link in base_link), as in config/vi_node.yaml.
 MOUNT_XYZ = (0.08, 0.0, 0.55)
@@ -40,8 +54,12 @@ class ViewSettings:
     base_height: float = 0.005  # m, base_link height above the floor, up to
     position_error: float = 0.05  # m, overhead position error, up to (uniform over the disc)
     yaw_error: float = math.radians(10.0)  # overhead yaw error, up to (uniform)
+    errors_at_bound: bool = False  # True: every overhead error exactly position_error and +-yaw_error
     mount_xyz: tuple[float, float, float] = MOUNT_XYZ
     mount_rpy: tuple[float, float, float] = MOUNT_RPY
+
+
+DEFAULT_VIEW = ViewSettings()
 
 
 @dataclass(frozen=True)
@@ -51,7 +69,7 @@ class View:
     base: tuple[float, float, float]  # true x, y, yaw of base_link
     tilt: tuple[float, float, float]  # true base z, roll, pitch
     overhead: tuple[float, float, float]  # reported x, y, yaw
-    settings: ViewSettings = ViewSettings()
+    settings: ViewSettings = DEFAULT_VIEW
 
     @cached_property
     def camera(self) -> Array:
@@ -60,8 +78,12 @@ class View:
         return camera_pose(*self.base, self.settings.mount_xyz, self.settings.mount_rpy, z, roll, pitch)
 
     def to_dict(self) -> dict[str, list[float]]:
-        return {"base": list(self.base), "tilt": list(self.tilt), "overhead": list(self.overhead),
-                "camera": np.asarray(self.camera).round(6).tolist()}
+        return {
+            "base": list(self.base),
+            "tilt": list(self.tilt),
+            "overhead": list(self.overhead),
+            "camera": np.asarray(self.camera).round(6).tolist(),
+        }
 
 
 @dataclass
@@ -90,8 +112,12 @@ class Scene:
         return 0.5 * (low + high)
 
     def truth(self) -> dict[str, object]:
-        return {"expected": list(self.expected), "removed": list(self.removed),
-                "misplaced": sorted(self.misplaced), "present": list(self.present)}
+        return {
+            "expected": list(self.expected),
+            "removed": list(self.removed),
+            "misplaced": sorted(self.misplaced),
+            "present": list(self.present),
+        }
 
 
 def build_prefix(structure: Structure, rng: np.random.Generator, count: int) -> tuple[int, ...]:
@@ -119,7 +145,9 @@ def removable(structure: Structure, expected: Iterable[int], gone: Iterable[int]
     return sorted(t for t in still if not _resting_on(structure, t, still))
 
 
-def remove_tiles(structure: Structure, expected: Iterable[int], rng: np.random.Generator, count: int) -> tuple[int, ...]:
+def remove_tiles(
+    structure: Structure, expected: Iterable[int], rng: np.random.Generator, count: int
+) -> tuple[int, ...]:
     """Remove `count` random tiles, each one that nothing left rests on (as in the paper's trials)."""
     gone: list[int] = []
     for _ in range(count):
@@ -131,9 +159,14 @@ def remove_tiles(structure: Structure, expected: Iterable[int], rng: np.random.G
 
 
 def misplace_tile(
-    structure: Structure, tile_id: int, others: Iterable[int], rng: np.random.Generator,
-    shift: tuple[float, float] = (0.02, 0.03), turn: tuple[float, float] = (math.radians(15), math.radians(30)),
-    kind: str = "shift", attempts: int = 50,
+    structure: Structure,
+    tile_id: int,
+    others: Iterable[int],
+    rng: np.random.Generator,
+    shift: tuple[float, float] = (0.02, 0.03),
+    turn: tuple[float, float] = (math.radians(15), math.radians(30)),
+    kind: str = "shift",
+    attempts: int = 50,
 ) -> PlacedTile | None:
     """The tile shifted (by shift[0]..shift[1] m) or turned (by turn[0]..turn[1] rad about its centroid)
     without overlapping the `others`; None if no such pose was found."""
@@ -157,8 +190,13 @@ def misplace_tile(
 
 
 def random_scene(
-    structure: Structure, rng: np.random.Generator, removals: tuple[int, int] = (1, 3),
-    partial: float = 0.3, clutter: float = 0.3, misplacements: int = 0, misplace_kind: str | None = None,
+    structure: Structure,
+    rng: np.random.Generator,
+    removals: tuple[int, int] = (1, 3),
+    partial: float = 0.3,
+    clutter: float = 0.3,
+    misplacements: int = 0,
+    misplace_kind: str | None = None,
 ) -> Scene:
     """A part-built structure (with probability `partial`), some tiles removed, maybe clutter."""
     n = len(structure)
@@ -190,20 +228,28 @@ def random_clutter(structure: Structure, rng: np.random.Generator) -> list[Clutt
     reach = 0.5 * float(np.linalg.norm(high[:2] - low[:2])) + rng.uniform(0.25, 0.45)
     robot = ClutterBox(
         (centre[0] + reach * math.cos(angle), centre[1] + reach * math.sin(angle), 0.15),
-        (0.32, 0.32, 0.30), rng.uniform(0, math.pi),
+        (0.32, 0.32, 0.30),
+        rng.uniform(0, math.pi),
     )
     any_tile = structure.tiles[int(rng.choice(structure.tile_ids))]
     angle = rng.uniform(0, 2 * math.pi)
     reach = 0.5 * float(np.linalg.norm(high[:2] - low[:2])) + rng.uniform(0.08, 0.2)
     loose = PlacedTile(
-        -1, any_tile.type_name, any_tile.shape, rotation_from_rpy(0.0, 0.0, rng.uniform(0, math.pi)),
+        -1,
+        any_tile.type_name,
+        any_tile.shape,
+        rotation_from_rpy(0.0, 0.0, rng.uniform(0, math.pi)),
         np.array([centre[0] + reach * math.cos(angle), centre[1] + reach * math.sin(angle), 0.0]),
     )
     return [robot, loose]
 
 
 def view_from(
-    centre: Array, bearing: float, distance: float, rng: np.random.Generator, settings: ViewSettings = ViewSettings()
+    centre: Array,
+    bearing: float,
+    distance: float,
+    rng: np.random.Generator,
+    settings: ViewSettings = DEFAULT_VIEW,
 ) -> View:
     """The VI robot at `distance` from `centre` on `bearing`, facing it, with random errors."""
     x = centre[0] + distance * math.cos(bearing)
@@ -215,22 +261,26 @@ def view_from(
         rng.uniform(-settings.base_tilt, settings.base_tilt),
     )
     error_angle = rng.uniform(0, 2 * math.pi)
-    error = settings.position_error * math.sqrt(rng.random())
-    overhead = (
-        x + error * math.cos(error_angle),
-        y + error * math.sin(error_angle),
-        yaw + rng.uniform(-settings.yaw_error, settings.yaw_error),
-    )
+    if settings.errors_at_bound:
+        error = settings.position_error
+        turn = settings.yaw_error * float(rng.choice([-1.0, 1.0]))
+    else:
+        error = settings.position_error * math.sqrt(rng.random())
+        turn = rng.uniform(-settings.yaw_error, settings.yaw_error)
+    overhead = (x + error * math.cos(error_angle), y + error * math.sin(error_angle), yaw + turn)
     return View((x, y, _wrap(yaw)), tilt, (overhead[0], overhead[1], _wrap(overhead[2])), settings)
 
 
-def random_view(centre: Array, rng: np.random.Generator, settings: ViewSettings = ViewSettings()) -> View:
+def random_view(centre: Array, rng: np.random.Generator, settings: ViewSettings = DEFAULT_VIEW) -> View:
     return view_from(centre, rng.uniform(0, 2 * math.pi), rng.uniform(*settings.distance), rng, settings)
 
 
 def ring_of_views(
-    centre: Array, rng: np.random.Generator, count: int = 12, distance: float = 1.1,
-    settings: ViewSettings = ViewSettings(),
+    centre: Array,
+    rng: np.random.Generator,
+    count: int = 12,
+    distance: float = 1.1,
+    settings: ViewSettings = DEFAULT_VIEW,
 ) -> list[View]:
     """Candidate viewpoints evenly around the structure (for next-viewpoint choice)."""
     start = rng.uniform(0, 2 * math.pi)

@@ -85,8 +85,15 @@ class KinectNoise:
     def ideal(cls) -> KinectNoise:
         """Exact depths (range limits kept): for tests of geometry and frames."""
         return cls(
-            axial=False, lateral=False, quantisation=False, shadow=False, edge_dropout=0.0,
-            grazing_start=math.pi, grazing_end=math.pi, speckle_dropout=0.0, depth_resolution=0.0,
+            axial=False,
+            lateral=False,
+            quantisation=False,
+            shadow=False,
+            edge_dropout=0.0,
+            grazing_start=math.pi,
+            grazing_end=math.pi,
+            speckle_dropout=0.0,
+            depth_resolution=0.0,
         )
 
     def axial_sigma(self, z: Array, incidence: Array) -> Array:
@@ -114,14 +121,24 @@ class ClutterBox:
     def mesh(self) -> tuple[Array, NDArray[np.int64]]:
         """Vertices (8, 3) and outward-wound triangles (12, 3)."""
         sx, sy, sz = (s / 2 for s in self.size)
-        corners = np.array(
-            [[x, y, z] for z in (-sz, sz) for y in (-sy, sy) for x in (-sx, sx)], dtype=float
-        )
+        corners = np.array([[x, y, z] for z in (-sz, sz) for y in (-sy, sy) for x in (-sx, sx)], dtype=float)
         c, s = math.cos(self.yaw), math.sin(self.yaw)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         tris = np.array(
-            [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-             [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]],
+            [
+                [0, 2, 1],
+                [1, 2, 3],
+                [4, 5, 6],
+                [5, 7, 6],
+                [0, 1, 4],
+                [1, 5, 4],
+                [2, 6, 3],
+                [3, 6, 7],
+                [0, 4, 2],
+                [2, 4, 6],
+                [1, 3, 5],
+                [3, 7, 5],
+            ],
             dtype=np.int64,
         )
         return corners @ rot.T + np.asarray(self.center, dtype=float), tris
@@ -258,9 +275,7 @@ class KinectSimulator:
         """One depth frame of `scene` from `pose`: (H, W, 3) float32, NaN where there is no return."""
         return self.scan_labelled(scene, pose)[0]
 
-    def scan_labelled(
-        self, scene: KinectScene, pose: Array
-    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+    def scan_labelled(self, scene: KinectScene, pose: Array) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
         """The cloud and, per pixel, what it shows (tile id, FLOOR/CLUTTER/NO_RETURN_LABEL)."""
         noise, rng, k = self.noise, self.rng, self.intrinsics
         rotation, origin = np.asarray(pose)[:3, :3], np.asarray(pose)[:3, 3]
@@ -289,7 +304,9 @@ class KinectSimulator:
             edges = self._depth_edges(np.where(np.isfinite(t_ideal), t_ideal, 1e3))
             valid &= ~(edges & (rng.random(shape) < noise.edge_dropout))
         if noise.grazing_end < math.pi:
-            drop = np.clip((incidence - noise.grazing_start) / (noise.grazing_end - noise.grazing_start), 0, 1)
+            drop = np.clip(
+                (incidence - noise.grazing_start) / (noise.grazing_end - noise.grazing_start), 0, 1
+            )
             valid &= rng.random(shape) >= drop
         if noise.speckle_dropout > 0:
             valid &= rng.random(shape) >= noise.speckle_dropout
@@ -318,7 +335,12 @@ class KinectSimulator:
         return np.arccos(np.clip(cosine, 0.0, 1.0))
 
     def _in_projector_shadow(
-        self, scene: KinectScene, origin: Array, rotation: Array, directions: Array, depth: Array,
+        self,
+        scene: KinectScene,
+        origin: Array,
+        rotation: Array,
+        directions: Array,
+        depth: Array,
         valid: NDArray[np.bool_],
     ) -> NDArray[np.bool_]:
         """Pixels whose surface point the IR projector cannot light (something is in between)."""

@@ -39,17 +39,26 @@ def message_class(type_name: str) -> Any:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = _Parser(prog="ros2 run tiling_sim replay_bag", description="Publish a rosbag2's messages over ROS.")
+    parser = _Parser(
+        prog="ros2 run tiling_sim replay_bag", description="Publish a rosbag2's messages over ROS."
+    )
     parser.add_argument("--bag", required=True, help="rosbag2 folder (MCAP or SQLite)")
     parser.add_argument("--rate", type=float, default=1.0, help="playback speed factor (0: no pacing)")
     parser.add_argument("--gap", type=float, default=0.0, help="with --rate 0: seconds between messages")
     parser.add_argument("--topics", default="", help="comma-separated topics to publish (default: all)")
-    parser.add_argument("--start-delay", type=float, default=0.0, help="seconds to wait before the first message")
+    parser.add_argument(
+        "--start-delay", type=float, default=0.0, help="seconds to wait before the first message"
+    )
     parser.add_argument("--linger", type=float, default=1.0, help="seconds to stay up after the last message")
-    parser.add_argument("--wait-subscribers", type=float, default=0.0, help="wait up to this long for subscribers")
+    parser.add_argument(
+        "--wait-subscribers", type=float, default=0.0, help="wait up to this long for subscribers"
+    )
     args = parser.parse_args(argv)
     if min(args.rate, args.gap, args.wait_subscribers, args.linger, args.start_delay) < 0:
-        print("error: --rate, --gap, --start-delay, --linger and --wait-subscribers must not be negative", file=sys.stderr)
+        print(
+            "error: --rate, --gap, --start-delay, --linger and --wait-subscribers must not be negative",
+            file=sys.stderr,
+        )
         return 2
 
     from rosbags.rosbag2 import Reader, ReaderError
@@ -74,7 +83,9 @@ def main(argv: list[str] | None = None) -> int:
                 except (ImportError, AttributeError, ValueError):
                     print(f"error: message type {c.msgtype} of {c.topic} is not installed", file=sys.stderr)
                     return 1
-                qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+                qos = QoSProfile(
+                    depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
+                )
                 publishers[c.topic] = node.create_publisher(kind, c.topic, qos)
             deadline = time.monotonic() + args.wait_subscribers
             while args.wait_subscribers and time.monotonic() < deadline:

@@ -84,7 +84,10 @@ class ScanBagWriter:
         self._writer.write(self._pose_connection, stamp_ns, data)
 
     def write_scan(
-        self, stamp_ns: int, cloud: NDArray[np.float32], truth: dict[str, Any] | None = None,
+        self,
+        stamp_ns: int,
+        cloud: NDArray[np.float32],
+        truth: dict[str, Any] | None = None,
         frame_id: str = OPTICAL_FRAME,
     ) -> None:
         """An organized cloud (H, W, 3) float32 in the optical frame; `truth` goes to truth.json."""
@@ -96,9 +99,15 @@ class ScanBagWriter:
             for k, name in enumerate("xyz")
         ]
         msg = types["sensor_msgs/msg/PointCloud2"](
-            header=self._header(stamp_ns, frame_id), height=height, width=width, fields=fields,
-            is_bigendian=False, point_step=12, row_step=12 * width,
-            data=array.reshape(-1).view(np.uint8), is_dense=False,
+            header=self._header(stamp_ns, frame_id),
+            height=height,
+            width=width,
+            fields=fields,
+            is_bigendian=False,
+            point_step=12,
+            row_step=12 * width,
+            data=array.reshape(-1).view(np.uint8),
+            is_dense=False,
         )
         data = self.typestore.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")
         self._writer.write(self._cloud_connection, stamp_ns, data)

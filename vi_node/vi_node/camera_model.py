@@ -68,7 +68,9 @@ class PinholeCamera:
         `pose` is the 4x4 pose of the optical frame in the map. The whole image when a corner of the
         box is behind or very close to the camera (its projection is then not a bound).
         """
-        corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
+        corners = np.array(
+            [[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])]
+        )
         local = (corners - pose[:3, 3]) @ pose[:3, :3]
         if np.any(local[:, 2] < 0.05):
             return slice(0, self.height), slice(0, self.width)

@@ -53,7 +53,7 @@ def select_candidates(
     box_high = high + margin
     rows, cols = camera.box_roi(pose, box_low, box_high)
     window = cloud[rows, cols]
-    h, w = window.shape[:2]
+    w = window.shape[1]
     flat = window.reshape(-1, 3)
     finite = np.flatnonzero(np.isfinite(flat[:, 2]))
     optical = flat[finite].astype(np.float64)

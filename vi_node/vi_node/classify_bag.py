@@ -57,7 +57,9 @@ def _stamp_ns(header: Any, fallback: int) -> int:
     return stamp if stamp > 0 else fallback
 
 
-def read_recording(bag: str | Path, cloud_topic: str = CLOUD_TOPIC, pose_topic: str = POSE_TOPIC) -> tuple[PoseBuffer, Iterator[RecordedScan]]:
+def read_recording(
+    bag: str | Path, cloud_topic: str = CLOUD_TOPIC, pose_topic: str = POSE_TOPIC
+) -> tuple[PoseBuffer, Iterator[RecordedScan]]:
     """All overhead poses of the bag, and its scans one by one (in the bag's order)."""
     from rosbags.rosbag2 import Reader, ReaderError
     from rosbags.typesys import Stores, get_typestore
@@ -96,7 +98,7 @@ def read_recording(bag: str | Path, cloud_topic: str = CLOUD_TOPIC, pose_topic: 
             for connection, timestamp, raw in reader.messages(connections=cloud_connections):
                 try:
                     msg = typestore.deserialize_cdr(raw, connection.msgtype)
-                except Exception as error:  # noqa: BLE001 - a corrupt message must not end the run
+                except Exception as error:
                     yield RecordedScan(timestamp, "", None, f"unreadable message: {error}")
                     continue
                 stamp = _stamp_ns(msg.header, timestamp)
@@ -121,8 +123,13 @@ def result_json(stamp_ns: int, result: ScanResult | None, error: str = "") -> di
         out["error"] = error or (result.reason if result else "not classified")
         return out
     for tile in result.tiles:
-        entry: dict[str, Any] = {"state": tile.state.label, "physical": tile.physical, "virtual": tile.virtual,
-                                 "ratio": round(tile.ratio, 3), "residual": round(tile.residual, 4)}
+        entry: dict[str, Any] = {
+            "state": tile.state.label,
+            "physical": tile.physical,
+            "virtual": tile.virtual,
+            "ratio": round(tile.ratio, 3),
+            "residual": round(tile.residual, 4),
+        }
         out["tiles"][str(tile.tile_id)] = entry
     out["alignment_rms"] = round(result.alignment_rms, 5) if math.isfinite(result.alignment_rms) else None
     if result.camera_pose is not None:
@@ -134,7 +141,9 @@ def _numbers(text: str, count: int, name: str) -> list[float]:
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{name} needs {count} comma-separated numbers, got '{text}'") from None
+        raise argparse.ArgumentTypeError(
+            f"{name} needs {count} comma-separated numbers, got '{text}'"
+        ) from None
     if len(values) != count or not all(math.isfinite(v) for v in values):
         raise argparse.ArgumentTypeError(f"{name} needs {count} comma-separated numbers, got '{text}'")
     return values
@@ -150,16 +159,41 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="ros2 run vi_node classify",
-        description="Classify every expected tile in every scan of a recorded rosbag2 (JSON lines on stdout).",
+        description="Classify every expected tile in every scan of a recorded rosbag2 (JSON lines out).",
     )
     parser.add_argument("--structure", required=True, help="structure file (config/structures/*.yaml)")
-    parser.add_argument("--bag", required=True, help="rosbag2 folder with /vi/camera/depth/points and /vi/overhead_pose")
-    parser.add_argument("--expected", default=None, help="S_a: 'all' or comma-separated tile ids (default: the parameters')")
-    parser.add_argument("--params", default=None, help="parameter file in the node's format (default: built-in = config/vi_node.yaml)")
-    parser.add_argument("--camera-xyz", type=lambda t: _numbers(t, 3, "--camera-xyz"), help="camera_link position in base_link (m)")
-    parser.add_argument("--camera-rpy", type=lambda t: _numbers(t, 3, "--camera-rpy"), help="camera_link roll,pitch,yaw in base_link (rad)")
-    parser.add_argument("--intrinsics", type=lambda t: _numbers(t, 4, "--intrinsics"), help="fx,fy,cx,cy (px) at intrinsics_size")
-    parser.add_argument("--mode", choices=["default", "paper"], default=None, help="classification mode (default: the parameters')")
+    parser.add_argument(
+        "--bag", required=True, help="rosbag2 folder with /vi/camera/depth/points and /vi/overhead_pose"
+    )
+    parser.add_argument(
+        "--expected", default=None, help="S_a: 'all' or comma-separated tile ids (default: the parameters')"
+    )
+    parser.add_argument(
+        "--params",
+        default=None,
+        help="parameter file in the node's format (default: built-in = config/vi_node.yaml)",
+    )
+    parser.add_argument(
+        "--camera-xyz",
+        type=lambda t: _numbers(t, 3, "--camera-xyz"),
+        help="camera_link position in base_link (m)",
+    )
+    parser.add_argument(
+        "--camera-rpy",
+        type=lambda t: _numbers(t, 3, "--camera-rpy"),
+        help="camera_link roll,pitch,yaw in base_link (rad)",
+    )
+    parser.add_argument(
+        "--intrinsics",
+        type=lambda t: _numbers(t, 4, "--intrinsics"),
+        help="fx,fy,cx,cy (px) at intrinsics_size",
+    )
+    parser.add_argument(
+        "--mode",
+        choices=["default", "paper"],
+        default=None,
+        help="classification mode (default: the parameters')",
+    )
     return parser
 
 
@@ -201,7 +235,10 @@ def _run(args: argparse.Namespace) -> int:
         expected = parse_tile_ids(settings.expected_tiles)
         unknown = sorted(set(expected) - set(structure.tiles))
         if unknown:
-            print(f"error: --expected: tiles {', '.join(map(str, unknown))} are not in {args.structure}", file=sys.stderr)
+            print(
+                f"error: --expected: tiles {', '.join(map(str, unknown))} are not in {args.structure}",
+                file=sys.stderr,
+            )
             return 2
     pipeline = InspectionPipeline(structure, expected, settings)
     tolerance = int(settings.pose_tolerance * 1e9)

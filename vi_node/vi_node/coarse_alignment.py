@@ -48,22 +48,35 @@ class CoarseResult:
 class CoarseAligner:
     """The model grid of one S_a, reused for every scan while S_a is unchanged."""
 
-    def __init__(self, scene: VirtualScene, low: Array, high: Array, floor_clearance: float,
-                 settings: CoarseSettings = CoarseSettings()) -> None:
-        self.settings = s = settings
+    def __init__(
+        self,
+        scene: VirtualScene,
+        low: Array,
+        high: Array,
+        floor_clearance: float,
+        settings: CoarseSettings | None = None,
+    ) -> None:
+        self.settings = s = settings or CoarseSettings()
         pad = s.shift_range + s.surface_band + 2 * s.cell
         self.origin = np.array([low[0] - pad, low[1] - pad, floor_clearance])
-        size = np.array([high[0] - low[0] + 2 * pad, high[1] - low[1] + 2 * pad,
-                         high[2] + s.surface_band - floor_clearance])
+        size = np.array(
+            [
+                high[0] - low[0] + 2 * pad,
+                high[1] - low[1] + 2 * pad,
+                high[2] + s.surface_band - floor_clearance,
+            ]
+        )
         self.shape = tuple(int(n) for n in np.maximum(np.ceil(size / s.cell), 1).astype(int))
         nx, ny, nz = self.shape
         ix, iy, iz = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
         centres = self.origin + (np.stack([ix, iy, iz], axis=-1) + 0.5) * s.cell
         if scene.has_tiles:
             core = scene._core
-            distance = scene.closest_scene.compute_distance(
-                core.Tensor(centres.reshape(-1, 3).astype(np.float32))
-            ).numpy().reshape(nx, ny, nz)
+            distance = (
+                scene.closest_scene.compute_distance(core.Tensor(centres.reshape(-1, 3).astype(np.float32)))
+                .numpy()
+                .reshape(nx, ny, nz)
+            )
         else:
             distance = np.full((nx, ny, nz), np.inf)
         near = distance <= s.surface_band + 0.5 * s.cell
@@ -71,7 +84,7 @@ class CoarseAligner:
         model = np.where(near, 1.0, -s.off_penalty).transpose(2, 0, 1)  # (nz, nx, ny)
         self.model_spectrum = np.fft.rfft2(model)
         self.yaws = np.arange(-s.yaw_range, s.yaw_range + 1e-9, s.yaw_step)
-        reach = int(round(s.shift_range / s.cell))
+        reach = round(s.shift_range / s.cell)
         sx = np.fft.fftfreq(nx, 1.0 / nx).astype(int)
         sy = np.fft.fftfreq(ny, 1.0 / ny).astype(int)
         self.window = (np.abs(sx)[:, None] <= reach) & (np.abs(sy)[None, :] <= reach)
@@ -81,7 +94,7 @@ class CoarseAligner:
         """The best yaw about `pivot` (the camera) and x, y shift for `points` (N, 3, map frame)."""
         s = self.settings
         if len(points) > s.max_points:
-            points = points[:: int(math.ceil(len(points) / s.max_points))]
+            points = points[:: math.ceil(len(points) / s.max_points)]
         if len(points) == 0:
             return None
         nx, ny, nz = self.shape
@@ -114,4 +127,6 @@ class CoarseAligner:
         ok = (ux >= 0) & (ux < nx) & (uy >= 0) & (uy < ny)
         near = int(self.near[ux[ok], uy[ok], iz[ok]].sum())
         yaw = float(self.yaws[h])
-        return CoarseResult(yaw_shift_transform(yaw, pivot, shift), yaw, shift, near / max(1, int(ok.sum())), near)
+        return CoarseResult(
+            yaw_shift_transform(yaw, pivot, shift), yaw, shift, near / max(1, int(ok.sum())), near
+        )

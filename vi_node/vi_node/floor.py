@@ -62,9 +62,10 @@ def fit_floor(
     prior: Array,
     keep_out_low: Array,
     keep_out_high: Array,
-    settings: FloorSettings = FloorSettings(),
+    settings: FloorSettings | None = None,
 ) -> FloorFit | None:
     """Fit the floor plane near where `prior` (4x4 optical pose in map) predicts it; None if absent."""
+    settings = settings or FloorSettings()
     s = max(1, settings.stride)
     points = cloud[::s, ::s].reshape(-1, 3)
     points = points[np.isfinite(points[:, 2]) & (points[:, 2] > 0.0) & (points[:, 2] < settings.max_range)]

@@ -69,9 +69,10 @@ def _rotation_about(omega: Array) -> Array:
 
 
 def point_to_plane_icp(
-    points: Array, correspond: CorrespondenceFunction, settings: IcpSettings = IcpSettings()
+    points: Array, correspond: CorrespondenceFunction, settings: IcpSettings | None = None
 ) -> IcpResult:
     """Align `points` (N, 3, map frame) to S_a; returns the accumulated correction."""
+    settings = settings or IcpSettings()
     total = np.eye(4)
     current = points.astype(np.float64, copy=True)
     rms, inliers, converged = math.inf, 0, False
@@ -100,7 +101,10 @@ def point_to_plane_icp(
         update[:3, 3] = centre - rotation @ centre + step[3:]
         current = current @ rotation.T + update[:3, 3]
         total = update @ total
-        if np.linalg.norm(step[3:]) < settings.converged_translation and np.linalg.norm(step[:3]) < settings.converged_rotation:
+        if (
+            np.linalg.norm(step[3:]) < settings.converged_translation
+            and np.linalg.norm(step[:3]) < settings.converged_rotation
+        ):
             converged = True
             break
     return IcpResult(total, iterations, rms, inliers, converged)

@@ -31,20 +31,36 @@ class SettingsError(ValueError):
 @dataclass(frozen=True)
 class InspectionSettings:
     mode: str = _setting("paper", "classification: 'paper' (section 2.2.3 rules)")
-    structure_file: str = _setting("", "structure file used until /structure arrives (empty: wait for /structure)")
-    expected_tiles: str = _setting("all", "S_a until placement reports arrive: 'all' or comma-separated tile ids")
-    camera_xyz: list[float] = _setting([0.08, 0.0, 0.55], "camera_link position in base_link (m)")
-    camera_rpy: list[float] = _setting([0.0, 0.45, 0.0], "camera_link roll, pitch, yaw in base_link (rad, REP 103)")
-    intrinsics: list[float] = _setting([580.0, 580.0, 319.5, 239.5], "depth camera fx, fy, cx, cy (px) at intrinsics_size")
-    intrinsics_size: list[int] = _setting([640, 480], "image width, height (px) the intrinsics are given for; other resolutions are scaled")
+    structure_file: str = _setting(
+        "", "structure file used until /structure arrives (empty: wait for /structure)"
+    )
+    expected_tiles: str = _setting(
+        "all", "S_a until placement reports arrive: 'all' or comma-separated tile ids"
+    )
+    camera_xyz: list[float] = _setting([0.08, 0.0, 0.55], "camera_link position in base_link (m)")  # noqa: RUF009 - a field() with a default_factory
+    camera_rpy: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.0, 0.45, 0.0], "camera_link roll, pitch, yaw in base_link (rad, REP 103)"
+    )
+    intrinsics: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [580.0, 580.0, 319.5, 239.5], "depth camera fx, fy, cx, cy (px) at intrinsics_size"
+    )
+    intrinsics_size: list[int] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [640, 480], "image width, height (px) the intrinsics are given for; other resolutions are scaled"
+    )
     min_range: float = _setting(0.5, "nearest depth the camera measures (m)")
     max_range: float = _setting(4.5, "farthest depth the camera measures (m)")
-    sensor_reliability: str = _setting("auto", "clouds and overhead poses read 'reliable', 'best_effort' or 'auto' (reliable when every publisher offers it)")
+    sensor_reliability: str = _setting(
+        "auto",
+        "clouds and overhead poses read 'reliable', 'best_effort' or 'auto' "
+        "(reliable when every publisher offers it)",
+    )
     pose_tolerance: float = _setting(0.1, "largest time between a scan and the overhead pose used for it (s)")
     floor_stride: int = _setting(4, "floor fit uses every n-th row and column of the cloud")
     floor_clearance: float = _setting(0.01, "points lower than this above the floor are floor (m)")
     box_margin: float = _setting(0.03, "candidates lie within this of S_a's bounding box (m)")
-    coarse_search: bool = _setting(True, "search x, y, yaw before ICP (the overhead errors are too large for ICP alone)")
+    coarse_search: bool = _setting(
+        True, "search x, y, yaw before ICP (the overhead errors are too large for ICP alone)"
+    )
     coarse_yaw_range: float = _setting(0.21, "coarse search +- this about the overhead yaw (rad)")
     coarse_shift_range: float = _setting(0.10, "coarse search +- this in x and y (m)")
     icp_max_iterations: int = _setting(10, "ICP iterations at most (the paper: 10)")
@@ -54,7 +70,9 @@ class InspectionSettings:
     max_yaw_correction: float = _setting(0.35, "largest believable correction of the overhead yaw (rad)")
     min_support: int = _setting(100, "paper: support below this many points counts as 0")
     ratio_threshold: float = _setting(0.7, "paper: missing when min(p/v, v/p) <= this")
-    support_distance: float = _setting(0.015, "paper: a candidate supports the tile it projects onto within this (m)")
+    support_distance: float = _setting(
+        0.015, "paper: a candidate supports the tile it projects onto within this (m)"
+    )
 
     @staticmethod
     def description(name: str) -> str:
@@ -98,8 +116,16 @@ class InspectionSettings:
                 parse_tile_ids(self.expected_tiles)
             except ValueError as error:
                 raise bad("expected_tiles", str(error)) from None
-        positive = ("pose_tolerance", "floor_stride", "icp_max_iterations", "support_distance",
-                    "coarse_shift_range", "coarse_yaw_range", "max_pose_correction", "max_yaw_correction")
+        positive = (
+            "pose_tolerance",
+            "floor_stride",
+            "icp_max_iterations",
+            "support_distance",
+            "coarse_shift_range",
+            "coarse_yaw_range",
+            "max_pose_correction",
+            "max_yaw_correction",
+        )
         for name in positive:
             if not getattr(self, name) > 0:
                 raise bad(name, "must be positive")
@@ -140,7 +166,9 @@ def _coerce(name: str, value: Any, default: Any, source: str) -> Any:
             return [kind(v) for v in value]
     except (TypeError, ValueError):
         pass
-    raise SettingsError(f"{source}: parameter '{name}' has the wrong type (got {value!r}, expected like {default!r})")
+    raise SettingsError(
+        f"{source}: parameter '{name}' has the wrong type (got {value!r}, expected like {default!r})"
+    )
 
 
 def parse_tile_ids(text: str) -> list[int]:

@@ -31,7 +31,6 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import ColorRGBA
-from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, Structure, TileState, TileStateArray
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tiling_assembly.geometry import quaternion_from_rotation
@@ -39,6 +38,13 @@ from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.msg import (
+    AuctionAnnouncement,
+    PlacementReport,
+    Structure,
+    TileState,
+    TileStateArray,
+)
 from vi_node.classify import TileState as State
 from vi_node.inspection_settings import InspectionSettings, SettingsError, parse_tile_ids
 from vi_node.pipeline import InspectionPipeline, ScanResult
@@ -90,9 +96,13 @@ class ViNode(Node):
         self.scan_group, self.state_group = scans, state
         self.sensor_subscriptions: dict[str, tuple[Any, ReliabilityPolicy]] = {}
         self._match_sensor_publishers()
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(
+            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+        )
         self.create_subscription(Structure, "/structure", self._on_structure, latched, callback_group=state)
-        self.create_subscription(PlacementReport, "/placement_reports", self._on_report, 100, callback_group=state)
+        self.create_subscription(
+            PlacementReport, "/placement_reports", self._on_report, 100, callback_group=state
+        )
         self.create_subscription(
             AuctionAnnouncement, "/auction/announcements", self._on_announcement, 50, callback_group=state
         )
@@ -113,7 +123,9 @@ class ViNode(Node):
         defaults = InspectionSettings()
         values: dict[str, Any] = {}
         for name in InspectionSettings.names():
-            descriptor = ParameterDescriptor(description=InspectionSettings.description(name), dynamic_typing=True)
+            descriptor = ParameterDescriptor(
+                description=InspectionSettings.description(name), dynamic_typing=True
+            )
             values[name] = self.declare_parameter(name, getattr(defaults, name), descriptor).value
         try:
             return defaults.with_values(values, "vi_node")
@@ -209,7 +221,9 @@ class ViNode(Node):
 
     def _on_cloud(self, msg: PointCloud2) -> None:
         if self.pending is not None:
-            self._diagnose(DiagnosticStatus.WARN, "dropped a scan: a newer one arrived before its overhead pose")
+            self._diagnose(
+                DiagnosticStatus.WARN, "dropped a scan: a newer one arrived before its overhead pose"
+            )
         self.pending = msg
         self.pending_since = time.monotonic()
 
@@ -238,11 +252,14 @@ class ViNode(Node):
     def _inspect(self, msg: PointCloud2, overhead: OverheadPose) -> None:
         if msg.header.frame_id != OPTICAL_FRAME:
             self._diagnose(
-                DiagnosticStatus.ERROR, f"dropped a scan in frame '{msg.header.frame_id}', expected '{OPTICAL_FRAME}'"
+                DiagnosticStatus.ERROR,
+                f"dropped a scan in frame '{msg.header.frame_id}', expected '{OPTICAL_FRAME}'",
             )
             return
         if self.pipeline is None:
-            self._diagnose(DiagnosticStatus.WARN, "dropped a scan: no structure yet (structure_file or /structure)")
+            self._diagnose(
+                DiagnosticStatus.WARN, "dropped a scan: no structure yet (structure_file or /structure)"
+            )
             return
         try:
             cloud = cloud_from_msg(msg)
@@ -251,7 +268,7 @@ class ViNode(Node):
             return
         try:
             result = self.pipeline.inspect(cloud, overhead)
-        except Exception as error:  # noqa: BLE001 - a scan must never take the node down
+        except Exception as error:
             self.get_logger().error(f"inspection of a scan failed unexpectedly: {error!r}")
             self._diagnose(DiagnosticStatus.ERROR, f"inspection failed unexpectedly: {error!r}")
             return
@@ -278,10 +295,16 @@ class ViNode(Node):
             o.x, o.y, o.z, o.w = q
         out.alignment_rms = float(result.alignment_rms) if np.isfinite(result.alignment_rms) else 0.0
         for tile in result.tiles:
-            out.states.append(TileState(
-                tile_id=tile.tile_id, state=int(tile.state), physical_support=tile.physical,
-                virtual_support=tile.virtual, support_ratio=float(tile.ratio), residual=float(tile.residual),
-            ))
+            out.states.append(
+                TileState(
+                    tile_id=tile.tile_id,
+                    state=int(tile.state),
+                    physical_support=tile.physical,
+                    virtual_support=tile.virtual,
+                    support_ratio=float(tile.ratio),
+                    residual=float(tile.residual),
+                )
+            )
         return out
 
     def _markers_msg(self, scan: PointCloud2, result: ScanResult) -> MarkerArray:
@@ -307,10 +330,15 @@ class ViNode(Node):
         return markers
 
     def _diagnose(self, level: bytes | int, message: str, result: ScanResult | None = None) -> None:
-        status = DiagnosticStatus(name="vi_node: inspection", hardware_id=self.get_namespace(), message=message)
+        status = DiagnosticStatus(
+            name="vi_node: inspection", hardware_id=self.get_namespace(), message=message
+        )
         status.level = level if isinstance(level, bytes) else bytes([level])
         if result is not None:
-            status.values = [KeyValue(key=f"{stage} ms", value=f"{seconds * 1e3:.1f}") for stage, seconds in result.timings.items()]
+            status.values = [
+                KeyValue(key=f"{stage} ms", value=f"{seconds * 1e3:.1f}")
+                for stage, seconds in result.timings.items()
+            ]
             status.values.append(KeyValue(key="candidates", value=str(result.candidates)))
             status.values.extend(KeyValue(key="note", value=note) for note in result.notes)
         array = DiagnosticArray(status=[status])

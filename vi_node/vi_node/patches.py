@@ -74,9 +74,17 @@ def _make_patch(tile: int, face: int, corners: Array, normal: Array) -> _Patch:
     inward = np.column_stack([-edges[:, 1], edges[:, 0]])
     inward /= np.linalg.norm(inward, axis=1, keepdims=True)
     return _Patch(
-        tile=tile, face=face, normal=normal, offset=float(normal @ origin), origin=origin,
-        axes=np.array([u, v]), corners_2d=flat, edge_normals=inward,
-        edge_offsets=np.einsum("ij,ij->i", inward, flat), low=corners.min(axis=0), high=corners.max(axis=0),
+        tile=tile,
+        face=face,
+        normal=normal,
+        offset=float(normal @ origin),
+        origin=origin,
+        axes=np.array([u, v]),
+        corners_2d=flat,
+        edge_normals=inward,
+        edge_offsets=np.einsum("ij,ij->i", inward, flat),
+        low=corners.min(axis=0),
+        high=corners.max(axis=0),
     )
 
 
@@ -93,7 +101,9 @@ class PlanarPatches:
             for k, normal in enumerate(tile.face_normals):
                 corners = tile.face_corners(k)
                 u = corners[1] - corners[0]
-                flat = np.column_stack([(corners - corners[0]) @ u, (corners - corners[0]) @ np.cross(normal, u)])
+                flat = np.column_stack(
+                    [(corners - corners[0]) @ u, (corners - corners[0]) @ np.cross(normal, u)]
+                )
                 if _is_convex(flat):
                     pieces = [corners]
                 else:
@@ -116,7 +126,10 @@ class PlanarPatches:
         return len(self.tile_ids)
 
     def project(
-        self, points: Array, max_distance: float, camera_position: Array | None = None,
+        self,
+        points: Array,
+        max_distance: float,
+        camera_position: Array | None = None,
         only_tile: int | None = None,
     ) -> Projection:
         """Closest point on S_a of every point, if one lies within `max_distance`.
@@ -130,9 +143,11 @@ class PlanarPatches:
         normal = np.zeros((n, 3))
         patch_of = np.full(n, -1, dtype=np.int64)
         pad = max_distance
-        in_structure = np.flatnonzero(
-            np.all((points >= self.low - pad) & (points <= self.high + pad), axis=1)
-        ) if len(self) else np.zeros(0, dtype=np.int64)
+        in_structure = (
+            np.flatnonzero(np.all((points >= self.low - pad) & (points <= self.high + pad), axis=1))
+            if len(self)
+            else np.zeros(0, dtype=np.int64)
+        )
         tiles = range(len(self)) if only_tile is None else [only_tile]
         for t in tiles:
             sub = points[in_structure]
@@ -158,7 +173,11 @@ class PlanarPatches:
                     closest[chosen] = foot[better]
                     normal[chosen] = patch.normal
                     patch_of[chosen] = index
-        tile_of = np.where(patch_of >= 0, self.patch_tile[np.maximum(patch_of, 0)], -1) if len(self.patches) else patch_of
+        tile_of = (
+            np.where(patch_of >= 0, self.patch_tile[np.maximum(patch_of, 0)], -1)
+            if len(self.patches)
+            else patch_of
+        )
         return Projection(closest, normal, tile_of, patch_of, best)
 
     @staticmethod

@@ -74,10 +74,17 @@ class ExpectedModel:
         self.patches = PlanarPatches(tiles)
         self.scene = VirtualScene(tiles)
         self.low, self.high = self.patches.low, self.patches.high
-        self.coarse = CoarseAligner(
-            self.scene, self.low, self.high, settings.floor_clearance,
-            CoarseSettings(yaw_range=settings.coarse_yaw_range, shift_range=settings.coarse_shift_range),
-        ) if tiles else None
+        self.coarse = (
+            CoarseAligner(
+                self.scene,
+                self.low,
+                self.high,
+                settings.floor_clearance,
+                CoarseSettings(yaw_range=settings.coarse_yaw_range, shift_range=settings.coarse_shift_range),
+            )
+            if tiles
+            else None
+        )
 
     def __len__(self) -> int:
         return len(self.tile_ids)
@@ -97,7 +104,9 @@ class _Timer:
 class InspectionPipeline:
     """The visual inspection of one structure; `inspect` runs one scan."""
 
-    def __init__(self, structure: Structure, expected: Iterable[int] | None, settings: InspectionSettings) -> None:
+    def __init__(
+        self, structure: Structure, expected: Iterable[int] | None, settings: InspectionSettings
+    ) -> None:
         settings.validate()
         self.structure = structure
         self.settings = settings
@@ -138,7 +147,9 @@ class InspectionPipeline:
         except ValueError as error:
             return ScanResult(False, str(error), timings=timer.timings)
         if len(model) == 0:
-            return ScanResult(True, "", [], None, timings=timer.timings, notes=["S_a is empty: nothing to inspect"])
+            return ScanResult(
+                True, "", [], None, timings=timer.timings, notes=["S_a is empty: nothing to inspect"]
+            )
         notes: list[str] = []
         timer.lap("check")
 
@@ -146,7 +157,9 @@ class InspectionPipeline:
         timer.lap("prior")
         floor = fit_floor(cloud, prior, model.low, model.high, FloorSettings(stride=s.floor_stride))
         if floor is None:
-            notes.append("floor not found near where the mount predicts it: using the mount's height, roll, pitch")
+            notes.append(
+                "floor not found near where the mount predicts it: using the mount's height, roll, pitch"
+            )
             pose = prior
         else:
             pose = correct_pose(prior, floor)
@@ -155,18 +168,34 @@ class InspectionPipeline:
         if s.coarse_search and model.coarse is not None:
             reach = float(np.linalg.norm(0.5 * (model.low + model.high) - pose[:3, 3]))
             wide = s.box_margin + s.coarse_shift_range + s.coarse_yaw_range * (reach + 0.3)
-            wide_candidates = select_candidates(cloud, camera, pose, model.low, model.high, wide, s.floor_clearance)
+            wide_candidates = select_candidates(
+                cloud, camera, pose, model.low, model.high, wide, s.floor_clearance
+            )
             timer.lap("candidates")
             if len(wide_candidates) < s.min_alignment_points:
-                return self._failed(f"alignment failed: only {len(wide_candidates)} points near the expected structure", timer, notes)
+                return self._failed(
+                    f"alignment failed: only {len(wide_candidates)} points near the expected structure",
+                    timer,
+                    notes,
+                )
             coarse = model.coarse.align(wide_candidates.points, pose[:3, 3])
-            if coarse is None or coarse.on_surface < 0.25 or coarse.on_surface_points < s.min_alignment_points:
+            if (
+                coarse is None
+                or coarse.on_surface < 0.25
+                or coarse.on_surface_points < s.min_alignment_points
+            ):
                 share = 0.0 if coarse is None else coarse.on_surface
-                return self._failed(f"alignment failed: no x/y/yaw puts the scan on S_a ({share:.0%} of points on it)", timer, notes)
+                return self._failed(
+                    f"alignment failed: no x/y/yaw puts the scan on S_a ({share:.0%} of points on it)",
+                    timer,
+                    notes,
+                )
             pose = coarse.correction @ pose
             timer.lap("coarse")
 
-        candidates = select_candidates(cloud, camera, pose, model.low, model.high, s.box_margin, s.floor_clearance)
+        candidates = select_candidates(
+            cloud, camera, pose, model.low, model.high, s.box_margin, s.floor_clearance
+        )
         timer.lap("candidates")
         if len(candidates) < s.min_alignment_points:
             return self._failed(f"alignment failed: only {len(candidates)} candidate points", timer, notes)
@@ -186,13 +215,19 @@ class InspectionPipeline:
             )
 
         icp = point_to_plane_icp(
-            np.vstack([structure_points, floor_points]), correspond, IcpSettings(max_iterations=s.icp_max_iterations)
+            np.vstack([structure_points, floor_points]),
+            correspond,
+            IcpSettings(max_iterations=s.icp_max_iterations),
         )
         pose = icp.correction @ pose
         aligned = Candidates(
-            candidates.points @ icp.correction[:3, :3].T + icp.correction[:3, 3], candidates.optical, candidates.pixels
+            candidates.points @ icp.correction[:3, :3].T + icp.correction[:3, 3],
+            candidates.optical,
+            candidates.pixels,
         )
-        final = structure_correspond(structure_points @ icp.correction[:3, :3].T + icp.correction[:3, 3], 0.01)
+        final = structure_correspond(
+            structure_points @ icp.correction[:3, :3].T + icp.correction[:3, 3], 0.01
+        )
         on_structure = int(np.count_nonzero(final.distance <= 0.01))
         timer.lap("icp")
 
@@ -228,7 +263,9 @@ class InspectionPipeline:
         projection = model.patches.project(aligned.points, s.support_distance, pose[:3, 3])
         found = projection.found
         physical = np.bincount(projection.tile[found], minlength=len(model)).astype(np.int64)
-        squared = np.bincount(projection.tile[found], weights=projection.distance[found] ** 2, minlength=len(model))
+        squared = np.bincount(
+            projection.tile[found], weights=projection.distance[found] ** 2, minlength=len(model)
+        )
         residual = np.sqrt(squared / np.maximum(physical, 1))
         # the candidates lost everything lower than floor_clearance: so must the virtual points,
         # or every tile standing on the floor would look half missing
@@ -239,8 +276,14 @@ class InspectionPipeline:
         virtual_support = np.bincount(kept, minlength=len(model)).astype(np.int64)
         states, ratio = classify_paper(physical, virtual_support, s.min_support, s.ratio_threshold)
         return [
-            TileResult(int(tile_id), TileState(int(states[k])), int(physical[k]), int(virtual_support[k]),
-                       float(ratio[k]), float(residual[k]))
+            TileResult(
+                int(tile_id),
+                TileState(int(states[k])),
+                int(physical[k]),
+                int(virtual_support[k]),
+                float(ratio[k]),
+                float(residual[k]),
+            )
             for k, tile_id in enumerate(model.tile_ids)
         ]
 

@@ -32,13 +32,17 @@ def cloud_from_msg(msg: Any) -> NDArray[np.float32]:
         offsets[str(f.name)] = (int(f.offset), int(f.datatype))
     missing = [n for n in "xyz" if n not in offsets]
     if missing:
-        raise CloudError(f"cloud has no {', '.join(missing)} field(s) (fields: {', '.join(offsets) or 'none'})")
+        raise CloudError(
+            f"cloud has no {', '.join(missing)} field(s) (fields: {', '.join(offsets) or 'none'})"
+        )
     kinds = {offsets[n][1] for n in "xyz"}
     if not kinds <= {FLOAT32, FLOAT64} or len(kinds) != 1:
         raise CloudError("x, y, z must all be FLOAT32 (or all FLOAT64)")
     size = 4 if kinds == {FLOAT32} else 8
     if point_step < 3 * size or row_step < width * point_step:
-        raise CloudError(f"point_step {point_step} / row_step {row_step} too small for {width} points of x, y, z")
+        raise CloudError(
+            f"point_step {point_step} / row_step {row_step} too small for {width} points of x, y, z"
+        )
     if any(offsets[n][0] + size > point_step for n in "xyz"):
         raise CloudError("a field lies outside point_step")
     data = msg.data
@@ -50,7 +54,11 @@ def cloud_from_msg(msg: Any) -> NDArray[np.float32]:
     cloud = np.empty((height, width, 3), dtype=np.float32)
     for axis, name in enumerate("xyz"):
         view = np.ndarray(
-            shape=(height, width), dtype=dtype, buffer=raw, offset=offsets[name][0], strides=(row_step, point_step)
+            shape=(height, width),
+            dtype=dtype,
+            buffer=raw,
+            offset=offsets[name][0],
+            strides=(row_step, point_step),
         )
         cloud[..., axis] = view
     return cloud

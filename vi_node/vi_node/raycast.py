@@ -80,8 +80,13 @@ class VirtualScene:
         self.has_tiles = bool(tiles)
 
     def cast(
-        self, camera: PinholeCamera, pose: Array, rows: slice, cols: slice,
-        min_range: float = 0.0, max_range: float = np.inf,
+        self,
+        camera: PinholeCamera,
+        pose: Array,
+        rows: slice,
+        cols: slice,
+        min_range: float = 0.0,
+        max_range: float = np.inf,
     ) -> VirtualScan:
         """Cast the pixels (rows, cols) of a camera at `pose` (4x4 optical frame in map)."""
         directions = camera.rays[rows, cols] @ pose[:3, :3].T.astype(np.float32)
@@ -104,7 +109,9 @@ class VirtualScene:
         length = np.sqrt(np.einsum("...i,...i->...", directions, directions))
         cosine = np.abs(np.einsum("...i,...i->...", directions, normals)) / length
         depth = np.where(in_range, depth, np.inf).astype(np.float32)
-        return VirtualScan(rows, cols, depth, tile, face, cosine.astype(np.float32), (camera.width, camera.height))
+        return VirtualScan(
+            rows, cols, depth, tile, face, cosine.astype(np.float32), (camera.width, camera.height)
+        )
 
     def closest_points(self, points: Array) -> tuple[Array, Array, NDArray[np.int64]]:
         """Closest point on S_a, the normal there and the tile index, for every point."""
