@@ -62,7 +62,13 @@ class Exploration:
 
     weights: PriorityWeights = field(default_factory=PriorityWeights)
     travel_cost: float = 0.5  # priority points per metre of driving
+    failure_memory: float = 30.0  # s a viewpoint whose scans did not align is avoided
     tiles: dict[int, TileKnowledge] = field(default_factory=dict)
+    failed: dict[int, float] = field(default_factory=dict)  # candidate index -> when it failed
+
+    def viewpoint_failed(self, index: int, now: float) -> None:
+        """No scan from candidate `index` could be judged (not aligned, nothing in view)."""
+        self.failed[index] = now
 
     def expect(self, tile_ids: Iterable[int]) -> None:
         """The tiles S_a holds now (others are forgotten)."""
@@ -106,11 +112,14 @@ class Exploration:
     ) -> tuple[int, float]:
         """Index of the best candidate and its score.
 
-        `visible(pose)` predicts which expected tiles a scan from `pose` would resolve.
+        `visible(pose)` predicts which expected tiles a scan from `pose` would resolve. Candidates
+        that failed recently are skipped (all of them failing: the first one is returned).
         """
         priority = self.priority(now)
         best, best_score = 0, -math.inf
         for index, pose in enumerate(candidates):
+            if now - self.failed.get(index, -math.inf) < self.failure_memory:
+                continue
             gain = sum(priority.get(t, 0.0) for t in visible(pose))
             score = gain - self.travel_cost * math.dist(here[:2], pose[:2])
             if score > best_score + 1e-9:

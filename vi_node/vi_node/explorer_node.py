@@ -146,7 +146,9 @@ class ExplorerNode(Node):
         if self.arrived_at is not None and now < self.arrived_at + self.scan_timeout:
             return  # still waiting for a scan from here
         if self.arrived_at is not None:
-            self.get_logger().warn("no tile states from this viewpoint (scan not aligned?); moving on")
+            self.get_logger().warn("no tile states from this viewpoint (scan not aligned?); trying another")
+            if self.here is not None:
+                self.exploration.viewpoint_failed(self.candidates.index(self.here), now)
             self.arrived_at = None
         if not self.navigate.server_is_ready():
             self.get_logger().warn("navigate_to is not available", throttle_duration_sec=10.0)
