@@ -21,12 +21,18 @@ from typing import IO
 _PR_SET_PDEATHSIG = 1
 
 
-def _die_with_parent() -> None:
-    """Runs in the child before exec: SIGTERM when the parent process dies."""
-    try:
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-    except OSError:
-        pass
+def _child_setup(nice: int):  # type: ignore[no-untyped-def]
+    """What runs in the child before exec: die with the parent; lower the priority if asked."""
+
+    def setup() -> None:
+        try:
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+        except OSError:
+            pass
+        if nice:
+            os.nice(nice)
+
+    return setup
 
 
 @dataclass
@@ -47,7 +53,10 @@ class ProcessGroup:
     log_dir: Path | None = None
     processes: dict[str, ManagedProcess] = field(default_factory=dict)
 
-    def start(self, name: str, argv: Sequence[str], env: Mapping[str, str] | None = None) -> ManagedProcess:
+    def start(
+        self, name: str, argv: Sequence[str], env: Mapping[str, str] | None = None, nice: int = 0
+    ) -> ManagedProcess:
+        """Start `argv` as `name`; `nice` > 0 lets it yield the CPU to the others (heavy work)."""
         if name in self.processes and self.processes[name].alive():
             raise ValueError(f"a process named {name} is already running")
         log_file = None
@@ -63,7 +72,7 @@ class ProcessGroup:
             stderr=subprocess.STDOUT if log_file else subprocess.DEVNULL,
             env=dict(env) if env is not None else None,
             start_new_session=True,
-            preexec_fn=_die_with_parent,  # noqa: PLW1509 - only prctl, async-signal-safe enough
+            preexec_fn=_child_setup(nice),  # noqa: PLW1509 - only prctl and nice
         )
         process = ManagedProcess(name, popen, log_path, log_file)
         self.processes[name] = process
