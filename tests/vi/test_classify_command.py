@@ -23,8 +23,8 @@ def classify(*args: str) -> tuple[list[dict], str, int]:  # type: ignore[type-ar
     return lines, result.stderr, result.returncode
 
 
-def test_one_json_object_per_scan_with_the_contract_keys() -> None:
-    lines, stderr, code = classify("--bag", str(SCANS / "paper_vga"), "--mode", "paper")
+def test_paper_mode_one_json_object_per_scan_with_the_contract_keys() -> None:
+    lines, stderr, code = classify("--bag", str(SCANS / "paper_vga"), "--mode", "paper", "--no-fuse")
     assert code == 0, stderr
     truth = read_truth(SCANS / "paper_vga")
     assert [line["stamp"] for line in lines] == [s["stamp_ns"] / 1e9 for s in truth["scans"]]
@@ -38,6 +38,42 @@ def test_one_json_object_per_scan_with_the_contract_keys() -> None:
         for tile in truth["present"]:
             assert line["tiles"][str(tile)]["state"] != "missing" or tile == 5  # 5 lies under removed 10
         assert line["tiles"]["3"]["state"] == "occluded"
+        assert line["scan_count"] == 1
+
+
+def test_default_mode_fuses_the_scans_and_finds_every_removed_tile() -> None:
+    truth = read_truth(SCANS / "paper_qvga")
+    lines, stderr, code = classify("--bag", str(SCANS / "paper_qvga"))
+    assert code == 0, stderr
+    assert [line["scan_count"] for line in lines] == [1, 2, 3, 4]
+    for line in lines:
+        assert set(line["tiles"]) == {str(t) for t in truth["expected"]}
+        for tile_id, entry in line["tiles"].items():
+            assert entry["state"] in STATES
+            assert {"see_through", "in_front", "no_return", "judged"} <= set(entry) or entry["virtual"] == 0
+            if int(tile_id) in truth["removed"]:
+                assert entry["state"] == "missing", (tile_id, entry)  # 320x240, another robot in the scene
+            else:
+                assert entry["state"] != "missing", (tile_id, entry)
+    final = lines[-1]["tiles"]
+    assert final["2"]["state"] == "present" and final["2"].get("scans", 0) >= 2  # resolved once seen
+    single, _, _ = classify("--bag", str(SCANS / "paper_qvga"), "--no-fuse")
+    assert all(line["scan_count"] == 1 for line in single)
+    assert single[0]["tiles"]["2"]["state"] == "occluded"  # the first view does not see it
+
+
+def test_a_misplaced_tile_is_reported_with_its_offset() -> None:
+    truth = read_truth(SCANS / "paper_misplaced_qvga")
+    lines, stderr, code = classify("--bag", str(SCANS / "paper_misplaced_qvga"))
+    assert code == 0, stderr
+    moved = truth["misplaced"][0]
+    true_yaw = truth["misplaced_pose"][str(moved)]["yaw"]
+    entry = lines[-1]["tiles"][str(moved)]
+    assert entry["state"] == "misplaced"
+    assert abs(entry["offset"][2] - true_yaw) < 0.05 and abs(entry["offset"][0]) < 0.01
+    for line in lines:
+        assert sum(e["state"] == "misplaced" for e in line["tiles"].values()) <= 1
+        assert line["tiles"]["13"]["state"] == "missing"
 
 
 def test_expected_tiles_and_parameter_file(tmp_path: Path) -> None:
@@ -46,8 +82,10 @@ def test_expected_tiles_and_parameter_file(tmp_path: Path) -> None:
     assert all(set(line["tiles"]) == {"1", "2", "3", "6", "7"} for line in lines if not line.get("error"))
     params = tmp_path / "params.yaml"
     params.write_text("/**:\n  ros__parameters:\n    min_support: 30\n")
-    strict, _, _ = classify("--bag", str(SCANS / "paper_qvga"))
-    loose, _, _ = classify("--bag", str(SCANS / "paper_qvga"), "--params", str(params))
+    strict, _, _ = classify("--bag", str(SCANS / "paper_qvga"), "--mode", "paper", "--no-fuse")
+    loose, _, _ = classify(
+        "--bag", str(SCANS / "paper_qvga"), "--params", str(params), "--mode", "paper", "--no-fuse"
+    )
     occluded = lambda lines: sum(e["state"] == "occluded" for line in lines for e in line["tiles"].values())  # noqa: E731
     assert occluded(loose) < occluded(strict)  # 320x240 scans: the 100-point threshold hides small tiles
 

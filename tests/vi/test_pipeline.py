@@ -16,7 +16,8 @@ from vi_node.inspection_settings import InspectionSettings
 from vi_node.pipeline import InspectionPipeline
 from vi_node.pose_prior import OverheadPose, pose_error
 
-PAPER = InspectionSettings()
+PAPER = InspectionSettings().with_values({"mode": "paper"})
+DEFAULT = InspectionSettings()
 
 
 def worst_overhead(base: tuple[float, float, float], rng: np.random.Generator) -> OverheadPose:
@@ -29,13 +30,15 @@ def worst_overhead(base: tuple[float, float, float], rng: np.random.Generator) -
     )
 
 
-@pytest.mark.parametrize("name", ["paper_14", "gate_9"])
-def test_alignment_from_the_paper_error_bounds_lands_within_1cm_and_1deg(name: str) -> None:
+@pytest.mark.parametrize(
+    "name, mode", [("paper_14", "paper"), ("gate_9", "paper"), ("paper_14", "default"), ("gate_9", "default")]
+)
+def test_alignment_from_the_paper_error_bounds_lands_within_1cm_and_1deg(name: str, mode: str) -> None:
     built = structure(name)
     rng = np.random.default_rng(7 if name == "paper_14" else 8)
     scene = Scene(built, tuple(built.tile_ids), ())
     simulator = KinectSimulator(seed=9)
-    pipeline = InspectionPipeline(built, None, PAPER)
+    pipeline = InspectionPipeline(built, None, PAPER if mode == "paper" else DEFAULT)
     good = 0
     bearings = np.linspace(0, 2 * math.pi, 6, endpoint=False)
     for bearing in bearings:
@@ -48,6 +51,8 @@ def test_alignment_from_the_paper_error_bounds_lands_within_1cm_and_1deg(name: s
         assert shift < 0.03 and turn < math.radians(2.0)
     assert good >= len(bearings) - 1
     assert set(result.timings) >= {"prior", "floor", "candidates", "coarse", "icp", "raycast", "classify"}
+    if mode == "default":
+        assert {"evidence", "misplacement"} <= set(result.timings)
 
 
 def test_paper_mode_finds_removed_large_tiles_and_reports_every_expected_tile() -> None:
@@ -85,6 +90,37 @@ def test_expected_structure_changes_are_cached_and_respected() -> None:
     assert pipeline.model is first
 
 
+def test_default_mode_judges_small_tiles_relative_to_what_the_view_predicts() -> None:
+    """A 4 cm square and a triangle removed, seen from 1.9 m: the square fills some 50 pixels, half
+    the paper's 100 points, still enough to tell."""
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), (10, 13))
+    view = view_from(scene.centre, math.radians(-120.0), 1.9, np.random.default_rng(22))
+    cloud, labels = KinectSimulator(seed=23).scan_labelled(scene.kinect_scene, view.camera)
+    default = InspectionPipeline(paper, None, DEFAULT).inspect(cloud, OverheadPose(*view.overhead))
+    paper_mode = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
+    assert default.ok and paper_mode.ok
+    states = default.by_id()
+    for removed in (10, 13):
+        assert states[removed].state == TileState.MISSING, states[removed]
+    assert states[10].virtual < 100 and paper_mode.by_id()[10].state == TileState.OCCLUDED
+    for tile in paper.tile_ids:
+        if tile not in (10, 13):
+            assert states[tile].state in (TileState.PRESENT, TileState.OCCLUDED), (tile, states[tile])
+    assert states[8].state == TileState.PRESENT and 0 < int((labels == 8).sum()) < 120
+
+
+def test_default_mode_sees_other_robots_as_occluding_not_as_missing_tiles() -> None:
+    paper = structure()
+    robot = ClutterBox((0.05, -0.35, 0.15), (0.3, 0.3, 0.3))
+    view = view_from(np.zeros(3), math.radians(-100.0), 1.2, np.random.default_rng(24))
+    cloud = KinectSimulator(seed=25).scan(KinectScene(paper.tiles.values(), [robot]), view.camera)
+    result = InspectionPipeline(paper, None, DEFAULT).inspect(cloud, OverheadPose(*view.overhead))
+    assert result.ok, result.reason
+    assert all(t.state != TileState.MISSING for t in result.tiles)
+    assert any(t.in_front > 20 and t.state == TileState.OCCLUDED for t in result.tiles)
+
+
 def test_lower_resolution_clouds_are_scaled_from_the_intrinsics() -> None:
     paper = structure()
     scene = Scene(paper, tuple(paper.tile_ids), (13,))
@@ -118,16 +154,18 @@ def good_scan() -> tuple[np.ndarray, tuple[float, float, float], tuple[float, fl
 )
 def test_bad_clouds_give_a_reason_and_no_states(make, reason: str) -> None:  # type: ignore[no-untyped-def]
     cloud, _, overhead = good_scan()
-    result = InspectionPipeline(structure(), None, PAPER).inspect(make(cloud), OverheadPose(*overhead))
-    assert not result.ok and reason in result.reason and result.tiles == []
+    for settings in (PAPER, DEFAULT):
+        result = InspectionPipeline(structure(), None, settings).inspect(make(cloud), OverheadPose(*overhead))
+        assert not result.ok and reason in result.reason and result.tiles == []
 
 
 @pytest.mark.parametrize("shift, turn", [(0.6, 0.0), (0.0, math.radians(40.0)), (0.25, math.radians(25.0))])
 def test_an_overhead_pose_far_from_the_truth_gives_no_states(shift: float, turn: float) -> None:
     cloud, base, _ = good_scan()
     overhead = OverheadPose(base[0] + shift, base[1] - 0.5 * shift, base[2] + turn)
-    result = InspectionPipeline(structure(), None, PAPER).inspect(cloud, overhead)
-    assert not result.ok and "alignment failed" in result.reason and result.tiles == []
+    for settings in (PAPER, DEFAULT):
+        result = InspectionPipeline(structure(), None, settings).inspect(cloud, overhead)
+        assert not result.ok and "alignment" in result.reason and result.tiles == []
 
 
 def test_structure_hidden_behind_another_robot_gives_no_states() -> None:
@@ -136,8 +174,9 @@ def test_structure_hidden_behind_another_robot_gives_no_states() -> None:
     view = view_from(np.zeros(3), math.radians(-90.0), 1.2, rng)
     robot = ClutterBox((0.0, -0.45, 0.2), (0.5, 0.3, 0.4))
     cloud = KinectSimulator(seed=19).scan(KinectScene(paper.tiles.values(), [robot]), view.camera)
-    result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
-    assert not result.ok and result.tiles == []
+    for settings in (PAPER, DEFAULT):
+        result = InspectionPipeline(paper, None, settings).inspect(cloud, OverheadPose(*view.overhead))
+        assert not result.ok and result.tiles == []
 
 
 def test_everything_removed_gives_no_states() -> None:

@@ -8,17 +8,36 @@ from pathlib import Path
 from vi_helpers import SCANS, ros2_run
 
 
-def test_accuracy_script_prints_the_paper_style_table(tmp_path: Path) -> None:
+def test_accuracy_script_prints_the_paper_style_tables(tmp_path: Path) -> None:
     png = tmp_path / "accuracy.png"
     result = ros2_run(
-        "tiling_sim", "vi_accuracy", "--scenes", "3", "--structures", "paper_14", "--png", str(png)
+        "tiling_sim",
+        "vi_accuracy",
+        "--scenes",
+        "2",
+        "--views",
+        "2",
+        "--misplaced-scenes",
+        "1",
+        "--structures",
+        "paper_14",
+        "--png",
+        str(png),
     )
     assert result.returncode == 0, result.stderr
     out = result.stdout
-    assert "mode paper, single view" in out
-    assert re.search(r"all\s+\d+\s+\d+ \(", out)
+    for title in (
+        "mode default, single view",
+        "mode default, fused over up to 2 views",
+        "mode paper, single view",
+        "mode paper, fused over up to 2 views",
+        "misplaced tiles (default mode, single views)",
+    ):
+        assert title in out
+    assert len(re.findall(r"  all\s+\d+\s+\d+ \(", out)) == 4
     assert "paper (Worcester et al.)      22" in out
-    assert "alignment: 3/3 scans aligned" in out or "alignment:" in out
+    assert re.search(r"alignment: \d+/\d+ scans aligned", out)
+    assert re.search(r"present tiles flagged MISPLACED: +\d+", out)
     assert "3/3 scenes" in result.stderr  # progress
     assert png.stat().st_size > 10_000
 
@@ -36,6 +55,8 @@ def test_benchmark_script_times_every_stage_next_to_plain_open3d() -> None:
         assert f" {stage} " in out
     assert re.search(r"plain Open3D\s+total\s+\d+\.\d", out)
     assert re.search(r"plain Open3D / paper: \d+\.\d\dx", out)
+    assert re.search(r"plain Open3D / default: \d+\.\d\dx", out)
+    assert " evidence " in out and " misplacement " in out
 
 
 def test_replayer_refuses_what_it_cannot_play(tmp_path: Path) -> None:

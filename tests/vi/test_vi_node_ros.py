@@ -111,10 +111,35 @@ def offline(bag: str, *args: str) -> list[dict[str, Any]]:
     return [json.loads(line) for line in result.stdout.splitlines()]
 
 
+def replay(bag: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [
+            ros2_command(),
+            "run",
+            "tiling_sim",
+            "replay_bag",
+            "--bag",
+            bag,
+            "--rate",
+            "0",
+            "--gap",
+            "1.0",
+            "--wait-subscribers",
+            "20",
+            "--start-delay",
+            "1.5",
+        ],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+
+
 def test_replayed_scans_give_the_same_states_as_the_offline_command(probe: Probe) -> None:
     bag = str(SCANS / "paper_vga")
     truth = read_truth(bag)
-    with vi_node(f"structure_file:={PAPER}", "mode:=paper") as node:
+    with vi_node(f"structure_file:={PAPER}", "mode:=paper", "fuse_scans:=false") as node:
         assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), (
             "vi_node did not start"
         )
@@ -144,7 +169,7 @@ def test_replayed_scans_give_the_same_states_as_the_offline_command(probe: Probe
         assert "published 4 messages" in replay.stdout
         assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
         assert node.poll() is None
-    expected = offline(bag, "--mode", "paper")
+    expected = offline(bag, "--mode", "paper", "--no-fuse")
     assert len(probe.states) == 2
     for msg, line, scan in zip(probe.states, expected, truth["scans"], strict=True):
         assert msg.header.stamp.sec + msg.header.stamp.nanosec / 1e9 == pytest.approx(scan["stamp_ns"] / 1e9)
@@ -165,6 +190,44 @@ def test_replayed_scans_give_the_same_states_as_the_offline_command(probe: Probe
     assert markers[13].color.r > 0.8 and markers[13].color.g < 0.2  # missing: red
     assert markers[11].color.g > 0.7 and markers[11].color.r < 0.2  # present: green
     assert any(m.startswith("classified 14 tiles") for m in probe.diagnostics)
+
+
+def test_default_mode_over_ros_fuses_scans_and_reports_the_misplaced_tile(probe: Probe) -> None:
+    bag = str(SCANS / "paper_misplaced_qvga")
+    truth = read_truth(bag)
+    moved = truth["misplaced"][0]
+    with vi_node(f"structure_file:={PAPER}") as node:  # the defaults: default mode, fused
+        assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), (
+            "vi_node did not start"
+        )
+        result = replay(bag)
+        assert result.returncode == 0, result.stderr
+        assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
+        assert node.poll() is None
+    expected = offline(bag)
+    assert [m.scan_count for m in probe.states] == [1, 2]
+    for msg, line in zip(probe.states, expected, strict=True):
+        got = {
+            str(s.tile_id): (
+                STATE_NAMES[s.state],
+                s.physical_support,
+                s.virtual_support,
+                s.see_through_support,
+            )
+            for s in msg.states
+        }
+        assert got == {
+            k: (v["state"], v["physical"], v["virtual"], v.get("see_through", 0))
+            for k, v in line["tiles"].items()
+        }
+    final = {s.tile_id: s for s in probe.states[-1].states}
+    assert (
+        final[moved].state == 4
+        and abs(final[moved].offset_yaw - truth["misplaced_pose"][str(moved)]["yaw"]) < 0.05
+    )
+    assert final[13].state == 2 and final[13].scan_count == 2
+    measured = [m for m in probe.markers[-1].markers if m.ns == "measured"]
+    assert [m.id for m in measured] == [moved]
 
 
 def bag_messages(name: str) -> list[tuple[str, Any]]:

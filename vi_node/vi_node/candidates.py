@@ -44,21 +44,27 @@ def select_candidates(
     high: Array,
     margin: float,
     floor_clearance: float,
+    stride: int = 1,
 ) -> Candidates:
     """Points within `margin` of the box [low, high] (map) and higher than `floor_clearance`.
 
-    `pose` is the 4x4 pose of the optical frame in the map used to place the points.
+    `pose` is the 4x4 pose of the optical frame in the map used to place the points; with
+    `stride` > 1 only every stride-th row and column is looked at (for searches that need few points).
     """
     box_low = np.array([low[0] - margin, low[1] - margin, floor_clearance])
     box_high = high + margin
     rows, cols = camera.box_roi(pose, box_low, box_high)
+    rows = slice(rows.start, rows.stop, stride)
+    cols = slice(cols.start, cols.stop, stride)
     window = cloud[rows, cols]
-    w = window.shape[1]
-    flat = window.reshape(-1, 3)
-    finite = np.flatnonzero(np.isfinite(flat[:, 2]))
-    optical = flat[finite].astype(np.float64)
+    # height first (one row of the rotation): most of the window is floor, dropped before the rest
+    rotation = pose[:3, :3].astype(np.float32)
+    height = window @ rotation[2] + np.float32(pose[2, 3])
+    with np.errstate(invalid="ignore"):
+        level = (height >= box_low[2]) & (height <= box_high[2])  # NaN compares False
+    row, col = np.nonzero(level)
+    optical = window[row, col].astype(np.float64)
     world = optical @ pose[:3, :3].T + pose[:3, 3]
-    inside = np.all((world >= box_low) & (world <= box_high), axis=1)
-    local = finite[inside]
-    pixels = (local // w + rows.start) * camera.width + (local % w + cols.start)
+    inside = np.all((world[:, :2] >= box_low[:2]) & (world[:, :2] <= box_high[:2]), axis=1)
+    pixels = (row[inside] * stride + rows.start) * camera.width + (col[inside] * stride + cols.start)
     return Candidates(world[inside], optical[inside], pixels.astype(np.int64))

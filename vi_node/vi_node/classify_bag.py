@@ -2,12 +2,17 @@
 
     ros2 run vi_node classify --structure FILE --bag DIR [--expected all|ID,ID,...] [--params FILE]
         [--camera-xyz X,Y,Z] [--camera-rpy R,P,Y] [--intrinsics FX,FY,CX,CY] [--mode default|paper]
+        [--no-fuse]
 
 Reads `/vi/camera/depth/points` (sensor_msgs/PointCloud2) and `/vi/overhead_pose`
 (geometry_msgs/PoseStamped) from a rosbag2 folder (MCAP or SQLite, as `ros2 bag record` or
 `tiling_sim`'s writer made it), pairs every scan with the overhead pose nearest in time and prints
 one JSON object per scan, in the bag's order (DESIGN.md, inspection contract):
 {"stamp": S, "tiles": {"ID": {"state": "present"|"missing"|"occluded", "physical": N, "virtual": N}}}.
+States are fused over the bag's scans as the node fuses them (`fuse_scans`; `--no-fuse`: every
+scan on its own). Extra keys: "scan_count", "alignment_rms", "camera_position" per scan; per tile
+"ratio", "residual", in the default mode "see_through", "in_front", "no_return", "judged" (pixel
+evidence) and, for a tile found misplaced, state "misplaced" and "offset" [x, y, yaw] (m, rad).
 A scan that cannot be classified prints its stamp, empty "tiles" and an "error", plus one line on
 stderr. Bad arguments, parameters or structure: one line on stderr, exit status 2; a bag that
 cannot be read: one line, exit status 1.
@@ -29,11 +34,14 @@ from numpy.typing import NDArray
 
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
+from vi_node.classify import TileState
+from vi_node.fusion import TileFusion, fuse_scan
 from vi_node.inspection_settings import InspectionSettings, SettingsError, load_settings, parse_tile_ids
-from vi_node.pipeline import InspectionPipeline, ScanResult
+from vi_node.pipeline import InspectionPipeline
 from vi_node.point_cloud import CloudError, cloud_from_msg
 from vi_node.pose_matching import PoseBuffer
 from vi_node.pose_prior import OverheadPose
+from vi_node.scan_result import ScanResult
 
 CLOUD_TOPIC = "/vi/camera/depth/points"
 POSE_TOPIC = "/vi/overhead_pose"
@@ -130,7 +138,19 @@ def result_json(stamp_ns: int, result: ScanResult | None, error: str = "") -> di
             "ratio": round(tile.ratio, 3),
             "residual": round(tile.residual, 4),
         }
+        if result.evidence is not None and (tile.judged or tile.see_through or tile.in_front):
+            entry.update(
+                see_through=tile.see_through,
+                in_front=tile.in_front,
+                no_return=tile.no_return,
+                judged=tile.judged,
+            )
+        if result.scan_count > 1:
+            entry["scans"] = tile.scans
+        if tile.state == TileState.MISPLACED:
+            entry["offset"] = [round(tile.offset[0], 4), round(tile.offset[1], 4), round(tile.offset[2], 4)]
         out["tiles"][str(tile.tile_id)] = entry
+    out["scan_count"] = result.scan_count
     out["alignment_rms"] = round(result.alignment_rms, 5) if math.isfinite(result.alignment_rms) else None
     if result.camera_pose is not None:
         out["camera_position"] = [round(float(v), 4) for v in result.camera_pose[:3, 3]]
@@ -189,6 +209,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="fx,fy,cx,cy (px) at intrinsics_size",
     )
     parser.add_argument(
+        "--no-fuse",
+        action="store_true",
+        help="print every scan's own states (default: fused over the bag's scans, as the node publishes)",
+    )
+    parser.add_argument(
         "--mode",
         choices=["default", "paper"],
         default=None,
@@ -241,6 +266,8 @@ def _run(args: argparse.Namespace) -> int:
             )
             return 2
     pipeline = InspectionPipeline(structure, expected, settings)
+    fusion = TileFusion(pipeline.evidence_settings, paper_rules=settings.mode == "paper")
+    fuse = settings.fuse_scans and not args.no_fuse
     tolerance = int(settings.pose_tolerance * 1e9)
     try:
         poses, scans = read_recording(args.bag)
@@ -257,6 +284,8 @@ def _run(args: argparse.Namespace) -> int:
                     assert scan.cloud is not None
                     result = pipeline.inspect(scan.cloud, match[0])
                     error = "" if result.ok else result.reason
+                    if fuse:
+                        result = fuse_scan(fusion, result)
             if error:
                 print(f"scan at {scan.stamp_ns / 1e9:.3f} s: {error}", file=sys.stderr)
             print(json.dumps(result_json(scan.stamp_ns, result, error)), flush=True)

@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
 from numpy.typing import NDArray
 
 from vi_node.icp import yaw_shift_transform
@@ -82,7 +83,7 @@ class CoarseAligner:
         near = distance <= s.surface_band + 0.5 * s.cell
         self.near = near
         model = np.where(near, 1.0, -s.off_penalty).transpose(2, 0, 1)  # (nz, nx, ny)
-        self.model_spectrum = np.fft.rfft2(model)
+        self.model_spectrum = scipy.fft.rfft2(model.astype(np.float32), workers=2)
         self.yaws = np.arange(-s.yaw_range, s.yaw_range + 1e-9, s.yaw_step)
         reach = round(s.shift_range / s.cell)
         sx = np.fft.fftfreq(nx, 1.0 / nx).astype(int)
@@ -113,9 +114,10 @@ class CoarseAligner:
         hypothesis = np.broadcast_to(np.arange(len(self.yaws))[:, None], ix.shape)
         flat = ((hypothesis * nz + iz) * nx + ix) * ny + iy
         counts = np.bincount(flat[inside], minlength=len(self.yaws) * nz * nx * ny)
-        grid = np.minimum(counts, 3).reshape(len(self.yaws), nz, nx, ny).astype(np.float64)
-        spectrum = np.conj(np.fft.rfft2(grid)) * self.model_spectrum[None]
-        score = np.fft.irfft2(spectrum.sum(axis=1), s=(nx, ny))  # (yaws, nx, ny): sum_v M(v) K(v + s)
+        grid = np.minimum(counts, 3).reshape(len(self.yaws), nz, nx, ny).astype(np.float32)
+        spectrum = np.conj(scipy.fft.rfft2(grid, workers=2)) * self.model_spectrum[None]
+        # (yaws, nx, ny): sum_v M(v) K(v + s) for every shift s
+        score = scipy.fft.irfft2(spectrum.sum(axis=1), s=(nx, ny), workers=2)
         score = np.where(self.window[None], score, -np.inf)
         best = np.max(score.reshape(len(self.yaws), -1), axis=1)
         top = best.max()

@@ -10,13 +10,13 @@ checked), high while its state is undetermined (occluded, or never seen), and ot
 with the time since it was last seen, so that every tile is looked at again now and then (tiles
 can disappear while building). Candidate viewpoints stand on rings around the structure, facing
 it; the next one is the candidate whose view (predicted by ray tracing S_a, see
-`viewpoint.predict_visible`) resolves the most priority, less a small cost for driving there.
+`viewpoint.rank_viewpoints`) resolves the most priority, less a small cost for driving there.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -103,24 +103,17 @@ class Exploration:
     def unresolved(self) -> list[int]:
         return sorted(t for t, k in self.tiles.items() if k.placed_at > k.judged_at or k.state in (OCCLUDED, UNKNOWN))
 
-    def choose(
-        self,
-        candidates: Sequence[Pose2],
-        here: Pose2,
-        now: float,
-        visible: Callable[[Pose2], set[int]],
-    ) -> tuple[int, float]:
+    def choose(self, candidates: Sequence[Pose2], here: Pose2, now: float, gains: Sequence[float]) -> tuple[int, float]:
         """Index of the best candidate and its score.
 
-        `visible(pose)` predicts which expected tiles a scan from `pose` would resolve. Candidates
-        that failed recently are skipped (all of them failing: the first one is returned).
+        `gains[i]` is the priority candidate i would resolve (`viewpoint.rank_viewpoints` with the
+        weights of `priority`); driving there costs `travel_cost` per metre. Candidates that failed
+        recently are skipped (all of them failing: the first one is returned).
         """
-        priority = self.priority(now)
         best, best_score = 0, -math.inf
-        for index, pose in enumerate(candidates):
+        for index, (pose, gain) in enumerate(zip(candidates, gains, strict=True)):
             if now - self.failed.get(index, -math.inf) < self.failure_memory:
                 continue
-            gain = sum(priority.get(t, 0.0) for t in visible(pose))
             score = gain - self.travel_cost * math.dist(here[:2], pose[:2])
             if score > best_score + 1e-9:
                 best, best_score = index, score

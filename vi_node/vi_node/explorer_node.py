@@ -1,7 +1,7 @@
 """vi_explorer: drives the VI robot from viewpoint to viewpoint (paper section 2.2, prioritized
 exploration). Runs in the VI robot's namespace (`/vi`), next to `vi_node`.
 
-A thin adapter around `exploration.Exploration` and `viewpoint.ViewPredictor`. In: the latched
+A thin adapter around `exploration.Exploration` and `viewpoint.rank_viewpoints`. In: the latched
 `/structure`, `/placement_reports` (tiles claimed placed: the priority), `/auction/announcements`
 (tiles no longer expected), `/tile_states` (what the scans judged). Out: goals to the base's
 `navigate_to` action. After each arrival it waits for the first tile states of a scan taken there
@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import sys
 
+import numpy as np
 import rclpy
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
@@ -37,8 +38,10 @@ from vi_node.exploration import (
     PriorityWeights,
     ring_viewpoints,
 )
-from vi_node.pose_prior import CameraMount
-from vi_node.viewpoint import ViewPredictor
+from vi_node.evidence import EvidenceSettings
+from vi_node.pose_prior import CameraMount, OverheadPose
+from vi_node.raycast import VirtualScene
+from vi_node.viewpoint import rank_viewpoints
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -58,7 +61,12 @@ class ExplorerNode(Node):
         rpy = declare("camera_rpy", [0.0, 0.45, 0.0], "camera_link in base_link: roll, pitch, yaw (rad).")
         intrinsics = declare("intrinsics", [580.0, 580.0, 319.5, 239.5], "Depth camera fx, fy, cx, cy (px).")
         size = declare("intrinsics_size", [640, 480], "Image width, height the intrinsics are given for (px).")
-        self.min_support = int(declare("min_support", 100, "Virtual points a tile needs to be judged."))
+        evidence = EvidenceSettings()
+        self.evidence = EvidenceSettings(
+            max_incidence=float(declare("max_incidence", evidence.max_incidence, "Steepest judged view (rad).")),
+            min_observed_pixels=int(declare("min_observed_pixels", evidence.min_observed_pixels,
+                                            "Judged pixels a tile needs to be resolved.")),
+        )
         self.range = (float(declare("min_range", 0.5, "Nearest depth measured (m).")),
                       float(declare("max_range", 4.5, "Farthest depth measured (m).")))
         self.radii = [float(r) for r in declare("viewpoint_radii", [0.9, 1.2], "Rings of viewpoints (m).")]
@@ -77,8 +85,8 @@ class ExplorerNode(Node):
         self.candidates: list[tuple[float, float, float]] = []
         self.placed: dict[int, int] = {}  # tile -> stamp (ns) of its latest placement report
         self.withdrawn: dict[int, int] = {}  # tile -> stamp (ns) of its latest announcement
-        self.predictor: ViewPredictor | None = None
-        self.predictor_tiles: tuple[int, ...] = ()
+        self.scene: VirtualScene | None = None  # S_a for ray tracing candidate views
+        self.scene_tiles: tuple[int, ...] = ()
         self.here: tuple[float, float, float] | None = None
         self.arrived_at: float | None = None  # s; None while driving
         self.driving = False
@@ -110,10 +118,9 @@ class ExplorerNode(Node):
     def update_expected(self) -> None:
         expected = self.expected()
         self.exploration.expect(expected)
-        if self.structure is not None and tuple(expected) != self.predictor_tiles:
-            self.predictor_tiles = tuple(expected)
-            self.predictor = ViewPredictor([self.structure.tiles[t] for t in expected], self.camera, self.mount,
-                                           self.min_support, self.range[1], self.range[0])
+        if self.structure is not None and tuple(expected) != self.scene_tiles:
+            self.scene_tiles = tuple(expected)
+            self.scene = VirtualScene([self.structure.tiles[t] for t in expected])
 
     def on_structure(self, msg: Structure) -> None:
         try:
@@ -140,7 +147,7 @@ class ExplorerNode(Node):
             self.tick()
 
     def tick(self) -> None:
-        if self.structure is None or self.driving or self.predictor is None:
+        if self.structure is None or self.driving or self.scene is None or not self.scene_tiles:
             return
         now = self.now()
         if self.arrived_at is not None and now < self.arrived_at + self.scan_timeout:
@@ -154,7 +161,16 @@ class ExplorerNode(Node):
             self.get_logger().warn("navigate_to is not available", throttle_duration_sec=10.0)
             return
         here = self.here or self.candidates[0]
-        index, score = self.exploration.choose(self.candidates, here, now, self.predictor.resolvable)
+        tiles = [self.structure.tiles[t] for t in self.scene_tiles]
+        low = np.min([t.aabb[0] for t in tiles], axis=0)
+        high = np.max([t.aabb[1] for t in tiles], axis=0)
+        poses = [OverheadPose(*c) for c in self.candidates]
+        ranked = rank_viewpoints(self.scene, low, high, self.camera, self.mount, poses,
+                                 self.exploration.priority(now), self.evidence,
+                                 min_range=self.range[0], max_range=self.range[1])
+        gain_of = {(r.pose.x, r.pose.y, r.pose.yaw): r.score for r in ranked}
+        gains = [gain_of[(p.x, p.y, p.yaw)] for p in poses]
+        index, score = self.exploration.choose(self.candidates, here, now, gains)
         self.go_to(self.candidates[index], score)
 
     def go_to(self, pose: tuple[float, float, float], score: float) -> None:

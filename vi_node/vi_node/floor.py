@@ -67,17 +67,19 @@ def fit_floor(
     """Fit the floor plane near where `prior` (4x4 optical pose in map) predicts it; None if absent."""
     settings = settings or FloorSettings()
     s = max(1, settings.stride)
-    points = cloud[::s, ::s].reshape(-1, 3)
-    points = points[np.isfinite(points[:, 2]) & (points[:, 2] > 0.0) & (points[:, 2] < settings.max_range)]
-    if len(points) < settings.min_points:
-        return None
     rotation, origin = prior[:3, :3], prior[:3, 3]
-    world = points @ rotation.T + origin
-    distance = np.sqrt(np.einsum("ij,ij->i", points, points))
-    near_floor = np.abs(world[:, 2]) < settings.band + settings.band_slope * distance
+    sample = cloud[::s, ::s]
+    # predicted height first (one row of the rotation), on the whole subsample at once
+    height = sample @ rotation[2].astype(np.float32) + np.float32(origin[2])
+    depth = sample[..., 2]
+    with np.errstate(invalid="ignore"):  # NaN compares False
+        near_floor = (np.abs(height) < settings.band + settings.band_slope * depth) & (
+            depth < settings.max_range
+        )
+    points = sample[near_floor].astype(np.float64)
+    world_xy = points @ rotation[:2].T + origin[:2]
     low, high = keep_out_low[:2] - settings.keep_out, keep_out_high[:2] + settings.keep_out
-    outside = np.any((world[:, :2] < low) | (world[:, :2] > high), axis=1)
-    points = points[near_floor & outside].astype(np.float64)
+    points = points[np.any((world_xy < low) | (world_xy > high), axis=1)]
     if len(points) < settings.min_points:
         return None
 

@@ -46,8 +46,8 @@ class IcpSettings:
     min_distance: float = 0.01  # m, ... shrinking to this
     shrink: float = 0.6  # cut-off factor per iteration
     huber: float = 0.004  # m, residuals beyond this get less weight
-    converged_translation: float = 1e-4  # m, an update smaller than this ...
-    converged_rotation: float = 2e-4  # rad, ... and this ends the iterations
+    converged_translation: float = 2e-4  # m, an update smaller than this ...
+    converged_rotation: float = 4e-4  # rad, ... and this ends the iterations
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-MODES = ("paper",)
+MODES = ("default", "paper")
 
 
 def _setting(default: Any, description: str) -> Any:
@@ -30,7 +30,10 @@ class SettingsError(ValueError):
 
 @dataclass(frozen=True)
 class InspectionSettings:
-    mode: str = _setting("paper", "classification: 'paper' (section 2.2.3 rules)")
+    mode: str = _setting(
+        "default",
+        "classification: 'default' (pixel evidence, fusion, misplacement) or 'paper' (section 2.2.3 rules)",
+    )
     structure_file: str = _setting(
         "", "structure file used until /structure arrives (empty: wait for /structure)"
     )
@@ -55,7 +58,7 @@ class InspectionSettings:
         "(reliable when every publisher offers it)",
     )
     pose_tolerance: float = _setting(0.1, "largest time between a scan and the overhead pose used for it (s)")
-    floor_stride: int = _setting(4, "floor fit uses every n-th row and column of the cloud")
+    floor_stride: int = _setting(6, "floor fit uses every n-th row and column of the cloud")
     floor_clearance: float = _setting(0.01, "points lower than this above the floor are floor (m)")
     box_margin: float = _setting(0.03, "candidates lie within this of S_a's bounding box (m)")
     coarse_search: bool = _setting(
@@ -66,13 +69,40 @@ class InspectionSettings:
     icp_max_iterations: int = _setting(10, "ICP iterations at most (the paper: 10)")
     min_alignment_points: int = _setting(60, "a scan with fewer aligned candidates is not classified")
     min_alignment_inliers: float = _setting(0.6, "fraction of candidates that must lie on S_a after ICP")
-    max_pose_correction: float = _setting(0.2, "largest believable correction of the overhead position (m)")
+    min_agreement: float = _setting(0.35, "a scan agreeing with less of what S_a predicts is not classified")
+    max_pose_correction: float = _setting(
+        0.09, "largest believable correction of the overhead camera position (m): 5 cm + lever arms"
+    )
     max_yaw_correction: float = _setting(0.35, "largest believable correction of the overhead yaw (rad)")
     min_support: int = _setting(100, "paper: support below this many points counts as 0")
     ratio_threshold: float = _setting(0.7, "paper: missing when min(p/v, v/p) <= this")
     support_distance: float = _setting(
         0.015, "paper: a candidate supports the tile it projects onto within this (m)"
     )
+    icp_max_points: int = _setting(
+        1500, "default: ICP on at most this many candidates (paper mode: all of them)"
+    )
+    depth_sigmas: float = _setting(
+        3.0, "default: measured and virtual depth agree within this many noise sigmas ..."
+    )
+    depth_margin: float = _setting(
+        0.005, "default: ... plus this (m, model and pose error), more on oblique faces"
+    )
+    max_incidence: float = _setting(1.43, "default: pixels seeing a face more obliquely are not judged (rad)")
+    min_observed_pixels: int = _setting(8, "default: a tile needs this many judged pixels with data ...")
+    min_observed_fraction: float = _setting(0.15, "default: ... and this share of the pixels it should fill")
+    present_fraction: float = _setting(0.7, "default: present when this share of the observed pixels agree")
+    missing_fraction: float = _setting(
+        0.6, "default: missing when this share of the observed pixels see through"
+    )
+    fuse_scans: bool = _setting(
+        True, "publish states fused over the scans of the same S_a (default mode: evidence)"
+    )
+    misplacement_shift: float = _setting(
+        0.015, "default: flag a tile whose points say it moved this far (m) ..."
+    )
+    misplacement_yaw: float = _setting(0.175, "default: ... or turned this much (rad)")
+    misplacement_points: int = _setting(3000, "default: judge placement on at most this many candidates")
 
     @staticmethod
     def description(name: str) -> str:
@@ -125,15 +155,35 @@ class InspectionSettings:
             "coarse_yaw_range",
             "max_pose_correction",
             "max_yaw_correction",
+            "depth_sigmas",
+            "misplacement_shift",
+            "misplacement_yaw",
+            "max_incidence",
+            "icp_max_points",
+            "misplacement_points",
         )
         for name in positive:
             if not getattr(self, name) > 0:
                 raise bad(name, "must be positive")
-        non_negative = ("floor_clearance", "box_margin", "min_support", "min_alignment_points")
+        non_negative = (
+            "floor_clearance",
+            "box_margin",
+            "min_support",
+            "min_alignment_points",
+            "depth_margin",
+            "min_observed_pixels",
+        )
         for name in non_negative:
             if not getattr(self, name) >= 0:
                 raise bad(name, "must not be negative")
-        for name in ("ratio_threshold", "min_alignment_inliers"):
+        for name in (
+            "ratio_threshold",
+            "min_alignment_inliers",
+            "min_agreement",
+            "min_observed_fraction",
+            "present_fraction",
+            "missing_fraction",
+        ):
             if not 0 <= getattr(self, name) <= 1:
                 raise bad(name, "must be between 0 and 1")
 

@@ -33,7 +33,7 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from tiling_assembly.geometry import quaternion_from_rotation
+from tiling_assembly.geometry import PlacedTile, quaternion_from_rotation
 from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
@@ -46,11 +46,14 @@ from tiling_assembly_msgs.msg import (
     TileStateArray,
 )
 from vi_node.classify import TileState as State
+from vi_node.fusion import TileFusion, fuse_scan
 from vi_node.inspection_settings import InspectionSettings, SettingsError, parse_tile_ids
-from vi_node.pipeline import InspectionPipeline, ScanResult
+from vi_node.misplacement import moved_tile
+from vi_node.pipeline import InspectionPipeline
 from vi_node.point_cloud import CloudError, cloud_from_msg
 from vi_node.pose_matching import PoseBuffer
 from vi_node.pose_prior import OverheadPose
+from vi_node.scan_result import ScanResult
 
 OPTICAL_FRAME = "camera_depth_optical_frame"
 COLOURS = {  # RViz colours of the tile states
@@ -60,6 +63,9 @@ COLOURS = {  # RViz colours of the tile states
     State.MISPLACED: (0.95, 0.45, 0.0, 0.9),
     State.UNKNOWN: (0.6, 0.6, 0.6, 0.5),
 }
+
+
+MEASURED_COLOUR = (0.95, 0.45, 0.0, 0.35)  # where a misplaced tile really is
 
 
 class StartupError(RuntimeError):
@@ -87,6 +93,7 @@ class ViNode(Node):
         self.withdrawn: dict[int, int] = {}  # tile id -> stamp (ns) of the auction that took it out of S_a
         self.reports_seen = False
         self.pipeline: InspectionPipeline | None = None
+        self.fusion = TileFusion()
         self.poses = PoseBuffer()
         self.pending: PointCloud2 | None = None
         self.pending_since = 0.0
@@ -150,7 +157,11 @@ class ViNode(Node):
             return
         if self.pipeline is None or self.pipeline.structure is not self.structure:
             self.pipeline = InspectionPipeline(self.structure, expected, self.settings)
+            self.fusion = TileFusion(
+                self.pipeline.evidence_settings, paper_rules=self.settings.mode == "paper"
+            )
         elif tuple(expected) != self.pipeline.expected_ids:
+            self.fusion.forget(set(self.pipeline.expected_ids) - set(expected))
             self.pipeline.set_expected(expected)
 
     def _on_structure(self, msg: Structure) -> None:
@@ -171,6 +182,7 @@ class ViNode(Node):
             self.placed[int(msg.tile_id)] = max(stamp, self.withdrawn.get(int(msg.tile_id), -1) + 1)
         else:
             self.placed.pop(int(msg.tile_id), None)
+        self.fusion.forget([int(msg.tile_id)])  # (re)placed or given up: what was seen of it is history
         self._update_expected()
 
     def _on_announcement(self, msg: AuctionAnnouncement) -> None:
@@ -275,6 +287,8 @@ class ViNode(Node):
         if not result.ok:
             self._diagnose(DiagnosticStatus.WARN, f"no tile states for this scan: {result.reason}", result)
             return
+        if self.settings.fuse_scans:
+            result = fuse_scan(self.fusion, result)
         self.states_pub.publish(self._states_msg(msg, result))
         self.markers_pub.publish(self._markers_msg(msg, result))
         self._diagnose(DiagnosticStatus.OK, f"classified {len(result.tiles)} tiles", result)
@@ -284,7 +298,7 @@ class ViNode(Node):
         out = TileStateArray()
         out.header.stamp = scan.header.stamp
         out.header.frame_id = "map"
-        out.scan_count = 1
+        out.scan_count = result.scan_count
         if result.camera_pose is not None:
             pose = result.camera_pose
             out.camera_pose.position.x, out.camera_pose.position.y, out.camera_pose.position.z = (
@@ -303,6 +317,12 @@ class ViNode(Node):
                     virtual_support=tile.virtual,
                     support_ratio=float(tile.ratio),
                     residual=float(tile.residual),
+                    see_through_support=tile.see_through,
+                    occluded_support=tile.in_front,
+                    scan_count=tile.scans,
+                    offset_x=float(tile.offset[0]),
+                    offset_y=float(tile.offset[1]),
+                    offset_yaw=float(tile.offset[2]),
                 )
             )
         return out
@@ -316,18 +336,27 @@ class ViNode(Node):
         assert self.structure is not None
         for tile in result.tiles:
             placed = self.structure.tiles[tile.tile_id]
-            triangles, _ = placed.triangles
-            marker = Marker(type=Marker.TRIANGLE_LIST, action=Marker.ADD, id=tile.tile_id, ns="tiles")
-            marker.header.frame_id = "map"
-            marker.header.stamp = scan.header.stamp
-            marker.pose.orientation.w = 1.0
-            marker.scale.x = marker.scale.y = marker.scale.z = 1.0
-            r, g, b, a = COLOURS[tile.state]
-            marker.color = ColorRGBA(r=r, g=g, b=b, a=a)
-            corners = placed.vertices[triangles.reshape(-1)]
-            marker.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in corners]
-            markers.markers.append(marker)
+            markers.markers.append(self._tile_marker(scan, placed, "tiles", COLOURS[tile.state]))
+            if tile.state == State.MISPLACED:  # and where the scan says it really is
+                where = moved_tile(placed, tile.offset)
+                markers.markers.append(self._tile_marker(scan, where, "measured", MEASURED_COLOUR))
         return markers
+
+    @staticmethod
+    def _tile_marker(
+        scan: PointCloud2, tile: PlacedTile, namespace: str, colour: tuple[float, ...]
+    ) -> Marker:
+        triangles, _ = tile.triangles
+        marker = Marker(type=Marker.TRIANGLE_LIST, action=Marker.ADD, id=tile.tile_id, ns=namespace)
+        marker.header.frame_id = "map"
+        marker.header.stamp = scan.header.stamp
+        marker.pose.orientation.w = 1.0
+        marker.scale.x = marker.scale.y = marker.scale.z = 1.0
+        r, g, b, a = colour
+        marker.color = ColorRGBA(r=r, g=g, b=b, a=a)
+        corners = tile.vertices[triangles.reshape(-1)]
+        marker.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in corners]
+        return marker
 
     def _diagnose(self, level: bytes | int, message: str, result: ScanResult | None = None) -> None:
         status = DiagnosticStatus(

@@ -88,6 +88,21 @@ def _make_patch(tile: int, face: int, corners: Array, normal: Array) -> _Patch:
     )
 
 
+def turn_symmetry(tile: PlacedTile) -> int:
+    """How many turns about the vertical through the tile's centroid map it onto itself (1: none)."""
+    vertices = tile.vertices - tile.centroid
+    if abs(tile.rotation[2, 2] - 1.0) > 1e-6:
+        return 1  # not upright: a turn about the vertical is no symmetry to look for
+    for order in (8, 6, 5, 4, 3, 2):
+        angle = 2 * np.pi / order
+        c, s = np.cos(angle), np.sin(angle)
+        turned = vertices @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+        gaps = np.linalg.norm(turned[:, None, :] - vertices[None, :, :], axis=2).min(axis=1)
+        if gaps.max() < 1e-3:
+            return order
+    return 1
+
+
 class PlanarPatches:
     """S_a as convex planar patches under a structure -> tile -> patch AABB hierarchy."""
 
@@ -120,6 +135,8 @@ class PlanarPatches:
             self.tile_low = self.tile_high = np.zeros((0, 3))
             self.low = self.high = np.zeros(3)
         self.patch_tile = np.array([p.tile for p in self.patches], dtype=np.int64)
+        self.tile_centroid = np.array([t.centroid for t in tiles]) if tiles else np.zeros((0, 3))
+        self.tile_symmetry = [turn_symmetry(t) for t in tiles]
         self.patch_face = np.array([p.face for p in self.patches], dtype=np.int64)
 
     def __len__(self) -> int:

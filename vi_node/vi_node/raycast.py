@@ -106,12 +106,11 @@ class VirtualScene:
         tile[hit] = self.triangle_tile[primitive[hit]]
         face[hit] = self.triangle_face[primitive[hit]]
         tile[(geometry == self.floor_geometry) & in_range] = FLOOR
-        length = np.sqrt(np.einsum("...i,...i->...", directions, directions))
-        cosine = np.abs(np.einsum("...i,...i->...", directions, normals)) / length
-        depth = np.where(in_range, depth, np.inf).astype(np.float32)
-        return VirtualScan(
-            rows, cols, depth, tile, face, cosine.astype(np.float32), (camera.width, camera.height)
-        )
+        cosine = np.zeros(depth.shape, dtype=np.float32)
+        d, n = directions[hit], normals[hit]
+        cosine[hit] = np.abs(np.einsum("ij,ij->i", d, n)) / np.sqrt(np.einsum("ij,ij->i", d, d))
+        depth = np.where(in_range, depth, np.float32(np.inf))
+        return VirtualScan(rows, cols, depth, tile, face, cosine, (camera.width, camera.height))
 
     def closest_points(self, points: Array) -> tuple[Array, Array, NDArray[np.int64]]:
         """Closest point on S_a, the normal there and the tile index, for every point."""

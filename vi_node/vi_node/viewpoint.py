@@ -1,62 +1,105 @@
-"""Next viewpoint: which tiles would a scan from a candidate pose resolve (paper section 2.2.2,
-turned around: the virtual Kinect K_v placed at a pose the VI robot could drive to).
+"""The next viewpoint of the VI robot (paper section 2.2: "a prioritized exploration algorithm,
+which aims to map and update the dynamically changing physical structure with priority on
+currently targeted building regions").
 
-A tile is resolvable from a pose when the ray-traced virtual scan of S_a from there puts at least
-`min_support` points on it (scaled with the resolution used for the prediction): then the real
-scan can tell present from missing; with fewer it stays occluded.
+For every candidate base pose, a virtual scan of S_a is ray traced from where the camera would be
+(mount on a level base) at reduced resolution; a tile counts as resolvable from there when the
+virtual scan predicts enough judgeable pixels for it (the same test the default mode applies to a
+real scan). A candidate scores the weights of the tiles it would resolve: unresolved tiles weigh
+1, priority tiles (being built now) more; the best candidate is returned, ties going to the
+nearest one.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
-from tiling_assembly.geometry import PlacedTile
 from vi_node.camera_model import PinholeCamera
+from vi_node.evidence import EvidenceSettings, interior
 from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior
 from vi_node.raycast import VirtualScene
 
 
-class ViewPredictor:
-    """Predicts per-tile virtual support from VI robot base poses, for one S_a."""
+@dataclass(frozen=True)
+class ViewpointScore:
+    pose: OverheadPose
+    score: float
+    resolves: tuple[int, ...]  # tile ids predicted to be resolved from there
 
-    def __init__(
-        self,
-        tiles: Sequence[PlacedTile],
-        camera: PinholeCamera,
-        mount: CameraMount,
-        min_support: int,
-        max_range: float = 4.5,
-        min_range: float = 0.5,
-        prediction_width: int = 160,
-    ) -> None:
-        self.tiles = list(tiles)
-        self.scene = VirtualScene(self.tiles)
-        scale = prediction_width / camera.width
-        self.camera = camera.at_resolution(prediction_width, round(camera.height * scale))
-        # support counts shrink with the number of pixels
-        self.min_support = max(1.0, min_support * scale * scale)
-        self.mount = mount
-        self.range = (min_range, max_range)
-        if self.tiles:
-            lows = np.array([t.aabb[0] for t in self.tiles])
-            highs = np.array([t.aabb[1] for t in self.tiles])
-            self.box = (lows.min(axis=0), highs.max(axis=0))
 
-    def support(self, base_pose: tuple[float, float, float]) -> dict[int, float]:
-        """Predicted virtual support of every tile from `base_pose` (points at the prediction resolution)."""
-        if not self.tiles:
-            return {}
-        pose = camera_prior(OverheadPose(*base_pose), self.mount)
-        rows, cols = self.camera.box_roi(pose, *self.box)
-        if rows.stop <= rows.start or cols.stop <= cols.start:
-            return {t.tile_id: 0.0 for t in self.tiles}
-        scan = self.scene.cast(self.camera, pose, rows, cols, *self.range)
-        counts = scan.support(len(self.tiles))
-        return {t.tile_id: float(c) for t, c in zip(self.tiles, counts, strict=True)}
+def rank_viewpoints(
+    scene: VirtualScene,
+    low: np.ndarray,
+    high: np.ndarray,
+    camera: PinholeCamera,
+    mount: CameraMount,
+    candidates: Sequence[OverheadPose],
+    wanted: Mapping[int, float],
+    settings: EvidenceSettings | None = None,
+    stride: int = 4,
+    min_range: float = 0.5,
+    max_range: float = 4.5,
+) -> list[ViewpointScore]:
+    """Score every candidate pose by the weights of the `wanted` tiles (id -> weight) it would
+    resolve; best first."""
+    settings = settings or EvidenceSettings()
+    coarse = PinholeCamera(
+        camera.fx / stride,
+        camera.fy / stride,
+        (camera.cx + 0.5) / stride - 0.5,
+        (camera.cy + 0.5) / stride - 0.5,
+        max(1, camera.width // stride),
+        max(1, camera.height // stride),
+    )
+    cos_limit = math.cos(settings.max_incidence)
+    index_of = {int(t): k for k, t in enumerate(scene.tile_ids)}
+    scores: list[ViewpointScore] = []
+    for pose in candidates:
+        optical = camera_prior(pose, mount)
+        rows, cols = coarse.box_roi(optical, low, high)
+        virtual = scene.cast(coarse, optical, rows, cols, min_range, max_range)
+        judged = interior(virtual.tile, virtual.depth) & (virtual.cos_incidence >= cos_limit)
+        pixels = np.bincount(virtual.tile[judged], minlength=len(scene.tile_ids)) * stride * stride
+        resolves = tuple(
+            tile
+            for tile in wanted
+            if tile in index_of and pixels[index_of[tile]] >= 2 * settings.min_observed_pixels
+        )
+        scores.append(ViewpointScore(pose, float(sum(wanted[t] for t in resolves)), resolves))
+    return sorted(scores, key=lambda s: -s.score)
 
-    def resolvable(self, base_pose: tuple[float, float, float]) -> set[int]:
-        """Tiles a scan from `base_pose` would see well enough to judge."""
-        full = self.min_support
-        return {tile for tile, count in self.support(base_pose).items() if count >= full}
+
+def next_viewpoint(
+    scene: VirtualScene,
+    low: np.ndarray,
+    high: np.ndarray,
+    camera: PinholeCamera,
+    mount: CameraMount,
+    candidates: Sequence[OverheadPose],
+    unresolved: Iterable[int],
+    priority: Iterable[int] = (),
+    priority_weight: float = 3.0,
+    current: OverheadPose | None = None,
+    settings: EvidenceSettings | None = None,
+) -> ViewpointScore | None:
+    """The candidate that resolves the most unresolved (and priority) tiles; None if none resolves any.
+
+    Among equal scores the one nearest to `current` wins.
+    """
+    wanted: dict[int, float] = {int(t): 1.0 for t in unresolved}
+    for tile in priority:
+        wanted[int(tile)] = wanted.get(int(tile), 0.0) + priority_weight
+    if not wanted or not candidates:
+        return None
+    ranked = rank_viewpoints(scene, low, high, camera, mount, candidates, wanted, settings)
+    best = ranked[0].score
+    if best <= 0:
+        return None
+    ties = [r for r in ranked if r.score >= best - 1e-9]
+    if current is not None:
+        ties.sort(key=lambda r: math.hypot(r.pose.x - current.x, r.pose.y - current.y))
+    return ties[0]

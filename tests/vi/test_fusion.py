@@ -1,0 +1,89 @@
+"""Fusion of tile evidence across scans (default mode) and the paper's rescan rule (paper mode)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vi_node.classify import TileState
+from vi_node.evidence import TileEvidence
+from vi_node.fusion import TileFusion, fuse_scan
+from vi_node.scan_result import ScanResult, TileResult
+
+P, M, O = int(TileState.PRESENT), int(TileState.MISSING), int(TileState.OCCLUDED)  # noqa: E741
+
+
+def seen(agree: int, through: int, judged: int) -> TileEvidence:
+    e = TileEvidence.zeros(1)
+    e.agree[0], e.see_through[0], e.judged[0], e.virtual[0] = agree, through, judged, judged
+    return e
+
+
+def test_a_tile_undetermined_in_each_view_is_resolved_by_their_sum() -> None:
+    fusion = TileFusion()
+    fusion.add([7], seen(6, 0, 40), [O])  # 6 of 40 pixels seen: undetermined
+    assert fusion.state_of(7) == TileState.OCCLUDED and fusion.unresolved([7]) == [7]
+    fusion.add([7], seen(5, 0, 40), [O])  # and 5 more from elsewhere: 11 agreeing pixels
+    assert fusion.state_of(7) == TileState.PRESENT and fusion.unresolved([7]) == []
+    assert fusion.tiles[7].scans == 2 and int(fusion.summed([7]).agree[0]) == 11
+
+
+def test_a_tile_seen_present_then_missing_is_missing() -> None:
+    fusion = TileFusion()
+    for _ in range(5):
+        fusion.add([3], seen(200, 2, 220), [P])
+    fusion.add([3], seen(3, 150, 160), [M])  # removed while building: the new scan counts alone
+    assert fusion.state_of(3) == TileState.MISSING
+    assert int(fusion.summed([3]).agree[0]) == 3
+    fusion.add([3], seen(0, 0, 100), [O])  # then occluded: still missing
+    assert fusion.state_of(3) == TileState.MISSING
+
+
+def test_replaced_tiles_start_afresh_and_unknown_tiles_are_unknown() -> None:
+    fusion = TileFusion()
+    fusion.add([1, 2], TileEvidence(*(np.array([100, 2]),) * 6), [P, M])
+    fusion.forget([2])
+    assert fusion.state_of(2) == TileState.UNKNOWN and fusion.state_of(1) == TileState.PRESENT
+    fusion.forget()
+    assert fusion.tiles == {} and fusion.scans == 0
+
+
+def test_a_misplaced_tile_stays_misplaced_until_seen_in_place() -> None:
+    fusion = TileFusion()
+    fusion.add([4], seen(60, 40, 120), [O], {4: (True, (0.02, 0.0, 0.1), 0.01)})
+    assert fusion.state_of(4) == TileState.MISPLACED
+    fusion.add([4], seen(30, 30, 80), [O], {4: (False, (0.0, 0.0, 0.0), 0.004)})  # unsure view
+    assert fusion.state_of(4) == TileState.MISPLACED and fusion.tiles[4].offset == (0.02, 0.0, 0.1)
+    fusion.forget([4])
+    fusion.add([4], seen(200, 0, 210), [P], {4: (False, (0.0, 0.0, 0.0), 0.002)})
+    assert fusion.state_of(4) == TileState.PRESENT
+
+
+def test_paper_rules_keep_the_latest_resolved_state() -> None:
+    fusion = TileFusion(paper_rules=True)
+    fusion.add([5], seen(300, 0, 310), [P])
+    fusion.add([5], seen(0, 0, 0), [O])  # occluded from the next view: nothing new
+    assert fusion.state_of(5) == TileState.PRESENT
+    fusion.add([5], seen(20, 0, 310), [M])
+    assert fusion.state_of(5) == TileState.MISSING
+
+
+def test_fuse_scan_turns_a_scan_result_into_fused_tile_results() -> None:
+    fusion = TileFusion()
+
+    def scan(agree: list[int], states: list[int]) -> ScanResult:
+        e = TileEvidence.zeros(2)
+        e.agree[:] = agree
+        e.judged[:] = e.virtual[:] = [40, 40]
+        tiles = [
+            TileResult(t, TileState(s), a, 40, 1.0) for t, s, a in zip((1, 2), states, agree, strict=True)
+        ]
+        return ScanResult(True, tiles=tiles, tile_ids=(1, 2), evidence=e, evidence_states=np.array(states))
+
+    first = fuse_scan(fusion, scan([6, 30], [O, P]))
+    assert first.scan_count == 1 and first.by_id()[1].state == TileState.OCCLUDED
+    second = fuse_scan(fusion, scan([6, 30], [O, P]))
+    assert second.scan_count == 2
+    assert second.by_id()[1].state == TileState.PRESENT and second.by_id()[1].physical == 12
+    assert second.by_id()[2].scans == 2
+    failed = ScanResult(False, "alignment failed")
+    assert fuse_scan(fusion, failed) is failed and fusion.scans == 2

@@ -1,0 +1,89 @@
+"""Misplaced tiles (default mode): flagged with their offset, present tiles never flagged."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from vi_helpers import structure
+
+from tiling_assembly.contacts import separation
+from tiling_sim.inspection_scenarios import Scene, misplace_tile, view_from
+from tiling_sim.kinect import KinectSimulator
+from vi_node.classify import TileState
+from vi_node.inspection_settings import InspectionSettings
+from vi_node.misplacement import moved_tile
+from vi_node.patches import turn_symmetry
+from vi_node.pipeline import InspectionPipeline
+from vi_node.pose_prior import OverheadPose
+
+
+def test_turn_symmetry_of_the_paper_tiles() -> None:
+    paper = structure()
+    assert {t.type_name: turn_symmetry(t) for t in paper.tiles.values()} == {
+        "long_rectangle": 2,
+        "octagon": 8,
+        "trapezoid": 1,
+        "square": 4,
+        "triangle": 3,
+    }
+
+
+def test_moved_tile_turns_about_the_centroid_and_shifts() -> None:
+    tile = structure().tiles[7]
+    moved = moved_tile(tile, (0.02, -0.01, 0.3))
+    assert np.allclose(moved.centroid, tile.centroid + np.array([0.02, -0.01, 0.0]))
+    assert moved.yaw == pytest.approx(tile.yaw + 0.3)
+
+
+@pytest.mark.parametrize(
+    "tile, kind, bearing, seed",
+    [(12, "turn", -90.0, 1), (9, "shift", 150.0, 2), (13, "shift", -100.0, 3), (14, "turn", -60.0, 4)],
+)
+def test_misplaced_tiles_are_flagged_with_their_offset(
+    tile: int, kind: str, bearing: float, seed: int
+) -> None:
+    paper = structure()
+    rng = np.random.default_rng(seed)
+    removed = (14,) if tile == 12 else ()  # the triangle on 12 would have turned with it
+    others = [t for t in paper.tile_ids if t != tile and t not in removed]
+    moved = misplace_tile(paper, tile, others, rng, kind=kind)
+    assert moved is not None and all(separation(moved, paper.tiles[t]) > -1e-4 for t in others)
+    scene = Scene(paper, tuple(paper.tile_ids), removed, {tile: moved})
+    view = view_from(scene.centre, math.radians(bearing), 1.0, rng)
+    cloud = KinectSimulator(seed=seed).scan(scene.kinect_scene, view.camera)
+    result = InspectionPipeline(paper, None, InspectionSettings()).inspect(
+        cloud, OverheadPose(*view.overhead)
+    )
+    assert result.ok, result.reason
+    states = result.by_id()
+    assert states[tile].state == TileState.MISPLACED, states[tile]
+    true_shift = moved.centroid[:2] - paper.tiles[tile].centroid[:2]
+    true_turn = moved.yaw - paper.tiles[tile].yaw
+    dx, dy, turn = states[tile].offset
+    step = 2 * math.pi / turn_symmetry(paper.tiles[tile])
+    assert abs(dx - true_shift[0]) < 0.008 and abs(dy - true_shift[1]) < 0.008
+    assert abs((turn - true_turn + step / 2) % step - step / 2) < math.radians(5.0)
+    flagged = [t for t, s in states.items() if s.state == TileState.MISPLACED]
+    assert flagged == [tile]
+    assert all(states[t].state != TileState.MISSING for t in paper.tile_ids if t not in removed)
+
+
+def test_no_tile_of_an_intact_structure_is_flagged() -> None:
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), ())
+    rng = np.random.default_rng(5)
+    pipeline = InspectionPipeline(paper, None, InspectionSettings())
+    simulator = KinectSimulator(seed=6)
+    for bearing in range(0, 360, 45):
+        view = view_from(scene.centre, math.radians(bearing), rng.uniform(0.8, 1.5), rng)
+        result = pipeline.inspect(
+            simulator.scan(scene.kinect_scene, view.camera), OverheadPose(*view.overhead)
+        )
+        assert result.ok, result.reason
+        assert all(t.state in (TileState.PRESENT, TileState.OCCLUDED) for t in result.tiles), [
+            (t.tile_id, t.state)
+            for t in result.tiles
+            if t.state not in (TileState.PRESENT, TileState.OCCLUDED)
+        ]

@@ -1,0 +1,171 @@
+"""Fusion of tile evidence across scans of the same expected structure (beyond paper section 2.2).
+
+The paper re-scans from another position when a tile is occluded; here every scan's evidence is
+kept per tile, so a tile undetermined from one view is resolved by adding what other views saw of
+it. Tiles can be removed while the structure is built: when a scan decides a tile clearly the
+other way than the fused evidence does, the old evidence is dropped and the new scan counts alone
+(a tile seen present and later seen missing is reported missing). A tile that is (re)placed starts
+afresh. A tile found misplaced stays so until a scan sees it present and in place.
+
+Paper mode fuses by its own rules: the latest scan that resolved a tile (present or missing)
+decides it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from vi_node.classify import TileState
+from vi_node.evidence import EvidenceSettings, TileEvidence, decide
+from vi_node.scan_result import ScanResult, TileResult
+
+RESOLVED = (TileState.PRESENT, TileState.MISSING)
+
+
+@dataclass
+class FusedTile:
+    evidence: TileEvidence  # summed since the tile last changed
+    state: TileState  # decided on the summed evidence (or the latest resolved state, paper mode)
+    scans: int = 0  # scans that saw the tile (virtual support > 0) since it last changed
+    misplaced: bool = False
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # fitted x, y (m), yaw (rad) when misplaced
+    residual: float = 0.0
+    largest_view: int = 0  # most pixels of the tile judged in one scan
+
+
+@dataclass
+class TileFusion:
+    """Evidence per tile id, across scans."""
+
+    settings: EvidenceSettings = field(default_factory=EvidenceSettings)
+    paper_rules: bool = False
+    tiles: dict[int, FusedTile] = field(default_factory=dict)
+    scans: int = 0
+
+    def forget(self, tile_ids: Iterable[int] | None = None) -> None:
+        """Drop the evidence of some tiles (re-placed, or no longer expected), or of all."""
+        if tile_ids is None:
+            self.tiles.clear()
+            self.scans = 0
+            return
+        for tile_id in tile_ids:
+            self.tiles.pop(int(tile_id), None)
+
+    def add(
+        self,
+        tile_ids: Iterable[int],
+        evidence: TileEvidence,
+        states: Iterable[int],
+        misplacement: dict[int, tuple[bool, tuple[float, float, float], float]] | None = None,
+    ) -> dict[int, FusedTile]:
+        """Add one scan: per-tile evidence (arrays in `tile_ids` order) and the scan's own states.
+
+        `misplacement` maps tile ids the scan could judge for misplacement to (flagged, offset,
+        residual). Returns the fused view of exactly these tiles.
+        """
+        self.scans += 1
+        ids = [int(t) for t in tile_ids]
+        scan_states = [TileState(int(s)) for s in states]
+        for k, (tile_id, scan_state) in enumerate(zip(ids, scan_states, strict=True)):
+            mine = evidence.take(k)
+            fused = self.tiles.get(tile_id)
+            resolved = scan_state in RESOLVED
+            if fused is None:
+                fused = FusedTile(mine, scan_state, largest_view=int(mine.judged[0]))
+            elif self.paper_rules:
+                fused.evidence = fused.evidence + mine
+                if resolved or fused.state not in RESOLVED:
+                    fused.state = scan_state
+            elif resolved and fused.state in RESOLVED and fused.state != scan_state:
+                # the tile changed: this scan counts alone
+                fused = FusedTile(mine, scan_state, largest_view=int(mine.judged[0]))
+            else:
+                fused.evidence = fused.evidence + mine
+                fused.largest_view = max(fused.largest_view, int(mine.judged[0]))
+                fused.state = self._decide(fused)
+            fused.scans += int(mine.virtual[0] > 0)
+            if misplacement and tile_id in misplacement:
+                flagged, offset, residual = misplacement[tile_id]
+                if flagged:
+                    fused.misplaced, fused.offset, fused.residual = True, offset, residual
+                elif scan_state == TileState.PRESENT:  # seen in place: whatever moved it was put right
+                    fused.misplaced, fused.offset = False, (0.0, 0.0, 0.0)
+            self.tiles[tile_id] = fused
+        return {t: self.tiles[t] for t in ids}
+
+    def _decide(self, fused: FusedTile) -> TileState:
+        """The evidence summed over the views, with "enough of the tile seen" measured against the
+        view that showed most of it (summing what every view should see would ask for ever more)."""
+        evidence = replace(fused.evidence, judged=np.array([fused.largest_view]))
+        return TileState(int(decide(evidence, self.settings)[0]))
+
+    def state_of(self, tile_id: int) -> TileState:
+        fused = self.tiles.get(int(tile_id))
+        if fused is None:
+            return TileState.UNKNOWN
+        if fused.misplaced:
+            return TileState.MISPLACED
+        return fused.state
+
+    def unresolved(self, tile_ids: Iterable[int]) -> list[int]:
+        """Tiles with no decision yet (never seen, or only occluded so far)."""
+        return [
+            int(t)
+            for t in tile_ids
+            if self.state_of(t) not in (TileState.PRESENT, TileState.MISSING, TileState.MISPLACED)
+        ]
+
+    def summed(self, tile_ids: Iterable[int]) -> TileEvidence:
+        """The fused evidence of `tile_ids` as arrays in that order (zeros for unseen tiles)."""
+        ids = [int(t) for t in tile_ids]
+        out = TileEvidence.zeros(len(ids))
+        for k, tile_id in enumerate(ids):
+            fused = self.tiles.get(tile_id)
+            if fused is None:
+                continue
+            for name in ("agree", "see_through", "in_front", "no_return", "judged", "virtual"):
+                getattr(out, name)[k] = getattr(fused.evidence, name)[0]
+        return out
+
+    def states(self, tile_ids: Iterable[int]) -> np.ndarray:
+        return np.array([int(self.state_of(t)) for t in tile_ids], dtype=np.int64)
+
+
+def fuse_scan(fusion: TileFusion, result: ScanResult) -> ScanResult:
+    """Add a classified scan to `fusion`; the result with every tile's fused state and counts.
+
+    A scan that could not be classified adds nothing and comes back unchanged.
+    """
+    if not result.ok or result.evidence is None or result.evidence_states is None:
+        return result
+    fused = fusion.add(result.tile_ids, result.evidence, result.evidence_states, result.misplacement)
+    tiles: list[TileResult] = []
+    single = result.by_id()
+    for tile_id in result.tile_ids:
+        entry = fused[tile_id]
+        e = entry.evidence
+        agree, through, virtual = int(e.agree[0]), int(e.see_through[0]), int(e.virtual[0])
+        if fusion.paper_rules:
+            ratio = min(agree / virtual, virtual / agree) if agree and virtual else 0.0
+        else:
+            ratio = agree / (agree + through) if agree + through else 0.0
+        tiles.append(
+            TileResult(
+                tile_id=tile_id,
+                state=fusion.state_of(tile_id),
+                physical=agree,
+                virtual=virtual,
+                ratio=ratio,
+                residual=single[tile_id].residual,
+                see_through=through,
+                in_front=int(e.in_front[0]),
+                no_return=int(e.no_return[0]),
+                judged=int(e.judged[0]),
+                offset=entry.offset if entry.misplaced else (0.0, 0.0, 0.0),
+                scans=max(entry.scans, 1),
+            )
+        )
+    return replace(result, tiles=tiles, scan_count=fusion.scans)

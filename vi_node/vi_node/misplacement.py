@@ -1,0 +1,322 @@
+"""Misplaced tiles: points that sit consistently off a tile's expected faces (beyond the paper; its
+section 5 names "identification of incorrect assembly placements" as future work).
+
+After the scan is aligned to S_a, every candidate point is given to its nearest expected tile (if
+within a few centimetres). A tile whose points are, in a good share, farther from its faces than
+the sensor noise allows is refitted on its own: a planar rigid motion (x, y and a turn about its
+vertical axis, the way a tile slips when placed) that puts its points back onto its expected faces.
+If that motion is large enough (default: 1 cm or 8 degrees) and explains the points much better,
+the tile is flagged, with the motion as its offset. The per-tile residual (RMS distance of its
+points to its faces) is reported for every tile.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tiling_assembly.contacts import separation
+from tiling_assembly.geometry import PlacedTile, rotation_from_rpy
+from vi_node.patches import PlanarPatches
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class MisplacementSettings:
+    shift: float = 0.015  # m, flag when the fitted offset of the tile exceeds this ...
+    turn: float = math.radians(10.0)  # rad, ... or its fitted turn exceeds this
+    reach: float = 0.04  # m, points this close to a tile (and nearest to it) are its points
+    min_points: int = 50  # fewer points: the tile cannot be judged
+    min_off_share: float = 0.15  # refit only when this share of its points is off its faces
+    improvement: float = 0.85  # the refit must bring the median distance below this share of it before
+    iterations: int = 8
+    max_shift: float = 0.06  # m, fits beyond these are not believed ...
+    max_turn: float = math.radians(45.0)  # rad, ... (a run-off fit, not a misplaced tile)
+    significance: float = 8.0  # a fitted shift must stand this many sigmas clear of zero ...
+    turn_significance: float = 7.0  # ... and a fitted turn this many
+
+
+@dataclass(frozen=True)
+class TileFit:
+    """What the points say about one tile's placement."""
+
+    points: int
+    residual: float  # m, RMS distance of its points to its expected faces
+    judged: bool  # enough points to tell
+    misplaced: bool
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # x, y (m), yaw (rad) of the tile's motion
+    residual_after: float = 0.0  # m, median distance of its points to its faces after the refit
+    first_step: Array | None = None  # the linearised estimate (G's x, y, turn) that decided on a refit
+    median_before: float = 0.0  # m, median distance of the refitted points to the tile where it should be
+    sigmas: tuple[float, float] = (0.0, 0.0)  # significance of the fitted shift and turn
+
+
+def noise_tolerance(depth: Array) -> Array:
+    """Distance (m) within which a point at this depth is on a surface (3 sigma + half a step)."""
+    return 3.0 * (0.0012 + 0.0019 * (depth - 0.4) ** 2) + 0.5 * 2.85e-3 * depth**2 + 0.003
+
+
+def assess(
+    points: Array,
+    depth: Array,
+    nearest_tile: NDArray[np.int64],
+    closest: Array,
+    normal: Array,
+    patches: PlanarPatches,
+    camera_position: Array,
+    settings: MisplacementSettings,
+    tiles: Sequence[PlacedTile] | None = None,
+) -> dict[int, TileFit]:
+    """Judge every tile (by index into patches.tile_ids) from the aligned candidate points.
+
+    With the expected `tiles` (in patches' order), a fitted motion that would push a tile into
+    another one is not believed (tiles do not interpenetrate).
+
+    `points` (N, 3, map frame) with their depth in the camera (m) and, from one closest-point query
+    on S_a, the nearest expected tile, the closest point on it and the surface normal there.
+    """
+    fits: dict[int, TileFit] = {}
+    gap = points - closest
+    distance = np.sqrt(np.einsum("ij,ij->i", gap, gap))
+    # a point can only lie on a face the camera sees: one whose nearest face looks away from the
+    # camera (the bottom of a removed tile, on the top of the tile below it) belongs to no tile here
+    facing = np.einsum("ij,ij->i", normal, camera_position - closest) > 0
+    own = (distance <= settings.reach) & (facing | (distance > 0.005))
+    # one linearised step of the planar fit for every tile at once: its point-to-surface residuals
+    # against x, y and a turn about the tile's centre (off-face points use the direction to the face)
+    direction = np.where((distance > 0.002)[:, None], gap / np.maximum(distance, 1e-9)[:, None], normal)
+    centres = patches.tile_centroid
+    owner = np.where(own, nearest_tile, len(patches))
+    arm = points[:, :2] - centres[np.minimum(owner, len(patches) - 1), :2]
+    rows = np.stack(
+        [direction[:, 0], direction[:, 1], arm[:, 0] * direction[:, 1] - arm[:, 1] * direction[:, 0]], 1
+    )
+    residual = np.einsum("ij,ij->i", gap, direction)
+    count = len(patches) + 1
+    normal_matrix = np.stack(
+        [
+            np.bincount(owner, weights=rows[:, a] * rows[:, b], minlength=count)
+            for a in range(3)
+            for b in range(3)
+        ],
+        1,
+    ).reshape(count, 3, 3)[:-1]
+    gradient = np.stack(
+        [np.bincount(owner, weights=rows[:, a] * residual, minlength=count) for a in range(3)], 1
+    )[:-1]
+    points_of = np.bincount(owner, minlength=count)[:-1]
+    squared = np.bincount(owner, weights=distance**2, minlength=count)[:-1]
+    step = np.zeros((len(patches), 3))
+    for index in np.flatnonzero(points_of >= settings.min_points):
+        matrix = normal_matrix[index] + np.eye(3) * 1e-6 * max(np.trace(normal_matrix[index]), 1e-9)
+        step[index] = -np.linalg.solve(matrix, gradient[index])
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(len(patches) + 1))
+    # the most-off tiles first: once one is found moved, the points it explains are its own and
+    # cannot make a neighbour look moved too
+    claimed = np.zeros(len(points), dtype=bool)
+    present = np.flatnonzero(points_of > 0)
+    rms_of = np.sqrt(squared[present] / points_of[present])
+    for index in present[np.argsort(-rms_of, kind="stable")]:
+        rms = float(np.sqrt(squared[index] / points_of[index]))
+        judged = bool(points_of[index] >= settings.min_points)
+        hint = (
+            math.hypot(step[index, 0], step[index, 1]) >= 0.4 * settings.shift
+            or abs(step[index, 2]) >= 0.4 * settings.turn
+        )
+        if not (judged and hint):
+            fits[int(index)] = TileFit(
+                int(points_of[index]), rms, judged, False, (0.0, 0.0, 0.0), rms, step[index]
+            )
+            continue
+        mine = order[bounds[index] : bounds[index + 1]]
+        mine = mine[~claimed[mine]]
+        if len(mine) < settings.min_points:
+            fits[int(index)] = TileFit(
+                int(points_of[index]), rms, False, False, (0.0, 0.0, 0.0), rms, step[index]
+            )
+            continue
+        offset, before, after, shift_sigmas, turn_sigmas, explained = _fit_tile(
+            points, nearest_tile, distance, mine, claimed, int(index), patches, camera_position, settings
+        )
+        shifted = math.hypot(offset[0], offset[1]) >= settings.shift and shift_sigmas >= settings.significance
+        turned = abs(offset[2]) >= settings.turn and turn_sigmas >= settings.turn_significance
+        # a fit that ran off (further than a tile slips when placed) explains nothing
+        believable = (
+            math.hypot(offset[0], offset[1]) <= settings.max_shift and abs(offset[2]) <= settings.max_turn
+        )
+        moved = (
+            (shifted or turned) and believable and (tiles is None or _fits_among(tiles, int(index), offset))
+        )
+        # the refit must explain the points better; a clear turn of a small tile barely changes the
+        # distances (the noise is as large as the corners' motion), its significance speaks for it
+        better = after <= settings.improvement * before or (
+            turned and turn_sigmas >= 1.5 * settings.turn_significance
+        )
+        fits[int(index)] = TileFit(
+            int(points_of[index]),
+            rms,
+            True,
+            bool(moved and better),
+            offset,
+            after,
+            step[index],
+            before,
+            (shift_sigmas, turn_sigmas),
+        )
+        if moved and better:
+            claimed[explained] = True
+    return fits
+
+
+def moved_tile(tile: PlacedTile, offset: tuple[float, float, float]) -> PlacedTile:
+    """The tile turned by offset[2] about its centroid's vertical and shifted by offset[0:2]."""
+    turn = rotation_from_rpy(0.0, 0.0, offset[2])
+    centroid = tile.centroid
+    position = turn @ (tile.position - centroid) + centroid + np.array([offset[0], offset[1], 0.0])
+    return PlacedTile(tile.tile_id, tile.type_name, tile.shape, turn @ tile.rotation, position)
+
+
+def _fits_among(tiles: Sequence[PlacedTile], index: int, offset: tuple[float, float, float]) -> bool:
+    """Whether the tile, moved by `offset`, stays clear of every other expected tile (5 mm slack)."""
+    moved = moved_tile(tiles[index], offset)
+    low, high = moved.aabb
+    for k, other in enumerate(tiles):
+        if k == index:
+            continue
+        other_low, other_high = other.aabb
+        if np.any(other_low > high + 0.01) or np.any(other_high < low - 0.01):
+            continue
+        if separation(moved, other) < -0.005:
+            return False
+    return True
+
+
+def _fit_tile(
+    points: Array,
+    nearest_tile: NDArray[np.int64],
+    distance: Array,
+    mine: NDArray[np.int64],
+    claimed: NDArray[np.bool_],
+    index: int,
+    patches: PlanarPatches,
+    camera_position: Array,
+    settings: MisplacementSettings,
+) -> tuple[tuple[float, float, float], float, float, float, float, NDArray[np.int64]]:
+    """Refit tile `index` on its points, then once more on the points that the moved tile explains
+    better than any other tile does (a moved tile's points may have been closer to a neighbour's
+    faces). Points `claimed` by a tile already found moved are left out. Returns its motion, the
+    RMS distance of the final points before and after, the significance (in standard deviations)
+    of the fitted shift and turn, and the points the moved tile explains."""
+    centre = patches.tile_centroid[index]
+    theta, shift, after, covariance = _refit(points[mine], index, patches, camera_position, settings)
+    chosen = mine
+    for _ in range(3):  # a tile that moved far takes a few rounds to collect all of its points
+        reach = settings.reach + float(np.hypot(*shift))
+        low, high = patches.tile_low[index] - reach, patches.tile_high[index] + reach
+        around = np.flatnonzero(np.all((points >= low) & (points <= high), axis=1) & ~claimed)
+        projection = patches.project(
+            _apply(points[around], centre, theta, shift), settings.reach, camera_position, only_tile=index
+        )
+        keep = projection.found & ((nearest_tile[around] == index) | (projection.distance < distance[around]))
+        if keep.sum() < settings.min_points or np.array_equal(around[keep], chosen):
+            break
+        chosen = around[keep]
+        previous = (theta, shift.copy())
+        theta, shift, after, covariance = _refit(
+            points[chosen], index, patches, camera_position, settings, (theta, shift)
+        )
+        if abs(theta - previous[0]) < 0.005 and np.linalg.norm(shift - previous[1]) < 0.001:
+            break
+    # how well the points fit the tile where it should be and where the fit puts it: median
+    # distances (robust to the odd point of a neighbour), on the same points
+    unmoved = patches.project(points[chosen], 0.08, camera_position, only_tile=index)
+    # how many standard deviations the fitted shift and turn are away from "in place"
+    try:
+        shift_sigmas = float(np.sqrt(shift @ np.linalg.solve(covariance[:2, :2], shift)))
+    except np.linalg.LinAlgError:
+        shift_sigmas = 0.0
+    # a square turned by 84 degrees is one turned by -6: count turns modulo the tile's symmetry
+    step = 2 * math.pi / patches.tile_symmetry[index]
+    turn = theta - round(theta / step) * step
+    turn_sigmas = abs(turn) / math.sqrt(max(covariance[2, 2], 1e-12))
+    final = patches.project(
+        _apply(points[chosen], centre, theta, shift), 0.08, camera_position, only_tile=index
+    )
+    before = float(np.median(np.where(unmoved.found, unmoved.distance, 0.08)))
+    after = float(np.median(np.where(final.found, final.distance, 0.08)))
+    explained = chosen[final.found & (final.distance <= 0.006)]
+    x, y, _ = _motion(centre, theta, shift)
+    return (x, y, -turn), before, after, shift_sigmas, turn_sigmas, explained
+
+
+def _apply(points: Array, centre: Array, theta: float, shift: Array) -> Array:
+    """G(p) = R(theta) (p - centre) + centre + shift, in the horizontal plane."""
+    c, s = math.cos(theta), math.sin(theta)
+    relative = points[:, :2] - centre[:2]
+    moved = points.copy()
+    moved[:, 0] = c * relative[:, 0] - s * relative[:, 1] + centre[0] + shift[0]
+    moved[:, 1] = s * relative[:, 0] + c * relative[:, 1] + centre[1] + shift[1]
+    return moved
+
+
+def _refit(
+    points: Array,
+    index: int,
+    patches: PlanarPatches,
+    camera_position: Array,
+    settings: MisplacementSettings,
+    start: tuple[float, Array] = (0.0, np.zeros(2)),
+) -> tuple[float, Array, float, Array]:
+    """The planar motion G (turn theta about the tile's centre, then shift) taking `points` onto
+    the expected faces of tile `index`, by robust Gauss-Newton; returns theta, shift and the RMS
+    distance left. Residuals are taken along the face normal on a face and along the way to the
+    face off it, so that points in the middle of a top face neither pull nor hold the fit. Also
+    returns the covariance of (shift x, shift y, theta) from the last linearisation: a direction the
+    visible faces do not constrain has a large variance."""
+    centre = patches.tile_centroid[index]
+    theta, shift = start[0], start[1].copy()
+    rms = math.inf
+    covariance = np.eye(3)
+    for _ in range(settings.iterations):
+        moved = _apply(points, centre, theta, shift)
+        projection = patches.project(moved, 0.08, camera_position, only_tile=index)
+        found = projection.found
+        if found.sum() < 6:
+            break
+        gap = (moved - projection.closest)[found]
+        distance = projection.distance[found]
+        rms = float(np.sqrt(np.mean(distance**2)))
+        off = distance > 0.002
+        direction = np.where(
+            off[:, None], gap / np.maximum(distance, 1e-9)[:, None], projection.normal[found]
+        )
+        arm = moved[found, :2] - centre[:2] - shift
+        rows = np.stack(
+            [direction[:, 0], direction[:, 1], arm[:, 0] * direction[:, 1] - arm[:, 1] * direction[:, 0]], 1
+        )
+        residual = np.einsum("ij,ij->i", gap, direction)
+        weight = np.minimum(1.0, 0.005 / np.maximum(np.abs(residual), 1e-9))
+        matrix = (rows * weight[:, None]).T @ rows + np.eye(3) * 1e-6 * max(
+            float(np.trace(rows.T @ rows)), 1e-9
+        )
+        variance = float(np.sum(weight * residual**2) / max(1.0, float(np.sum(weight)) - 3.0))
+        covariance = np.linalg.inv(matrix) * max(variance, 1e-6)
+        step = -covariance @ ((rows * weight[:, None]).T @ residual) / max(variance, 1e-6)
+        shift = shift + step[:2]
+        theta += float(step[2])
+        if np.linalg.norm(step[:2]) < 1e-4 and abs(step[2]) < 1e-4:
+            break
+    return theta, shift, rms, covariance
+
+
+def _motion(centre: Array, theta: float, shift: Array) -> tuple[float, float, float]:
+    """The tile's own motion (x, y of its centre, yaw) from G: the inverse of G."""
+    c, s = math.cos(-theta), math.sin(-theta)
+    back = np.array([c * -shift[0] - s * -shift[1], s * -shift[0] + c * -shift[1]])
+    return float(back[0]), float(back[1]), float(-theta)

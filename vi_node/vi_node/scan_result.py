@@ -1,0 +1,60 @@
+"""What the inspection says about a scan (or about several scans fused): one result per tile."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from vi_node.classify import TileState
+from vi_node.evidence import TileEvidence
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class TileResult:
+    """What the inspection says about one expected tile.
+
+    Paper mode: physical = p_i (points projecting onto the tile), virtual = v_i, ratio = min(p/v, v/p).
+    Default mode: physical = pixels where the tile's surface was measured where expected,
+    virtual = v_i, ratio = share of the observed pixels that agree, see_through / in_front /
+    no_return the other judged pixels. Counts are summed over the scans fused (`scans`).
+    """
+
+    tile_id: int
+    state: TileState
+    physical: int
+    virtual: int
+    ratio: float
+    residual: float = 0.0  # m, RMS distance of the tile's points to its expected faces
+    see_through: int = 0
+    in_front: int = 0
+    no_return: int = 0
+    judged: int = 0
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # MISPLACED: the tile's x, y (m), yaw (rad) motion
+    scans: int = 1
+
+
+@dataclass
+class ScanResult:
+    """The outcome of one scan: tile results, or the reason there are none."""
+
+    ok: bool
+    reason: str = ""
+    tiles: list[TileResult] = field(default_factory=list)
+    camera_pose: Array | None = None  # 4x4 aligned pose of the optical frame in the map (P_v)
+    alignment_rms: float = math.nan
+    candidates: int = 0
+    timings: dict[str, float] = field(default_factory=dict)  # stage -> seconds
+    notes: list[str] = field(default_factory=list)  # warnings that did not stop the scan
+    tile_ids: tuple[int, ...] = ()  # the expected tiles, in the order of the arrays below
+    evidence: TileEvidence | None = None  # per-tile counts (paper mode: agree = p_i)
+    evidence_states: NDArray[np.int64] | None = None  # states from the counts alone (no misplacement)
+    misplacement: dict[int, tuple[bool, tuple[float, float, float], float]] = field(default_factory=dict)
+    scan_count: int = 1  # scans fused into `tiles`
+
+    def by_id(self) -> dict[int, TileResult]:
+        return {t.tile_id: t for t in self.tiles}
