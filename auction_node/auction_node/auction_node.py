@@ -59,6 +59,10 @@ REASONS = {
 }
 
 
+def stamp_seconds(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
 @dataclass
 class PendingAward:
     award: Award
@@ -108,7 +112,7 @@ class AuctionNode(Node):
         def declare(name: str, default: object, description: str) -> None:
             self.declare_parameter(name, default, ParameterDescriptor(description=description))
 
-        declare("confirmations", 1, "Consecutive scans that must call a placed tile missing (paper: 1).")
+        declare("confirmations", 2, "Scans that must call a placed tile missing, none present between (paper: 1).")
         declare("bid_window", 2.0, "s (node clock) from an announcement to its deadline.")
         declare("liveness_timeout", 1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
         declare("acceptance_timeout", 2.0, "s of wall-clock time for a winner to accept before re-auctioning.")
@@ -163,7 +167,7 @@ class AuctionNode(Node):
 
     def on_report(self, msg: PlacementReport) -> None:
         if msg.outcome == PlacementReport.OUTCOME_PLACED:
-            self.detector.placed(msg.tile_id)
+            self.detector.placed(msg.tile_id, stamp_seconds(msg.header.stamp))
         elif msg.outcome == PlacementReport.OUTCOME_FAILED:
             self.detector.unplaced(msg.tile_id)
             self.decide(f"{msg.robot_name} gave up tile {msg.tile_id}: {msg.reason}", error=True)
@@ -172,7 +176,7 @@ class AuctionNode(Node):
     def on_tile_states(self, msg: TileStateArray) -> None:
         detected = time.time()
         sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states}
-        for tile_id in self.detector.sensed(sensing):
+        for tile_id in self.detector.sensed(sensing, stamp_seconds(msg.header.stamp)):
             self.detected_wall[tile_id] = detected
             self.decide(f"tile {tile_id} was placed but the scan says missing (q * q^s = -1)")
             self.announce(tile_id, AuctionAnnouncement.REASON_MISSING)

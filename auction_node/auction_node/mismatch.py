@@ -6,13 +6,17 @@ where q^s_i is 1 if the block is definitely present, -1 if it is missing, and 0 
 or absence of the block cannot be determined. Then, if q_i * q^s_i = -1, a block that a robot
 claims to have placed is determined to be missing."
 
-`confirmations` > 1 asks for that many consecutive missing observations first (the paper acts on
-one). A tile found missing is no longer placed (q_i = 0) until a robot reports it placed again,
-and its old sensing value is forgotten then, so a stale -1 cannot flag the new tile.
+`confirmations` > 1 asks for that many missing observations, with no present one between them,
+first (the paper acts on one: a single wrong scan then sends a robot to re-place a tile that is
+there). A tile found missing is no longer placed (q_i = 0) until a robot reports it placed again,
+and its old sensing value is forgotten then, so a stale -1 cannot flag the new tile. A scan taken
+before a tile's placement says nothing about it (scans arrive after some processing time, possibly
+after the report of a placement they did not see).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
@@ -29,10 +33,12 @@ class MismatchDetector:
     q: dict[int, int] = field(default_factory=dict)
     q_sensed: dict[int, int] = field(default_factory=dict)
     missing_streak: dict[int, int] = field(default_factory=dict)
+    placed_at: dict[int, float] = field(default_factory=dict)  # s, time of the latest placement
 
-    def placed(self, tile_id: int) -> None:
-        """A robot reported `tile_id` placed."""
+    def placed(self, tile_id: int, at: float = -math.inf) -> None:
+        """A robot reported `tile_id` placed at time `at` (s)."""
         self.q[tile_id] = 1
+        self.placed_at[tile_id] = at
         self.q_sensed[tile_id] = UNDETERMINED
         self.missing_streak.pop(tile_id, None)
 
@@ -41,13 +47,19 @@ class MismatchDetector:
         self.q[tile_id] = 0
         self.missing_streak.pop(tile_id, None)
 
-    def sensed(self, states: Mapping[int, int]) -> list[int]:
-        """Take one sensing vector (tile id -> 1, 0 or -1); returns the tiles now missing."""
+    def sensed(self, states: Mapping[int, int], at: float = math.inf) -> list[int]:
+        """Take the sensing vector of a scan taken at `at` (tile id -> 1, 0 or -1).
+
+        Returns the tiles now missing.
+        """
         found = []
         for tile_id, value in states.items():
+            if at < self.placed_at.get(tile_id, -math.inf):
+                continue  # the scan predates the placement
             self.q_sensed[tile_id] = value
+            if value == PRESENT:
+                self.missing_streak.pop(tile_id, None)  # an undetermined scan neither confirms nor clears
             if value != MISSING:
-                self.missing_streak.pop(tile_id, None)
                 continue
             if self.q.get(tile_id, 0) * value != -1:
                 continue

@@ -30,12 +30,20 @@ def test_replaced_tile_forgets_its_old_sensing() -> None:
     assert detector.sensed({4: PRESENT}) == []
 
 
-def test_confirmations_need_consecutive_missing_scans() -> None:
+def test_a_scan_older_than_the_placement_says_nothing_about_it() -> None:
+    detector = MismatchDetector()
+    detector.placed(4, at=100.0)
+    assert detector.sensed({4: MISSING}, at=98.5) == []  # taken before the tile was there
+    assert detector.sensed({4: MISSING}, at=101.0) == [4]
+
+
+def test_confirmations_need_missing_scans_without_a_present_one_between() -> None:
     detector = MismatchDetector(confirmations=2)
     detector.placed(4)
     assert detector.sensed({4: MISSING}) == []
-    assert detector.sensed({4: UNDETERMINED}) == []  # streak broken
+    assert detector.sensed({4: PRESENT}) == []  # cleared
     assert detector.sensed({4: MISSING}) == []
+    assert detector.sensed({4: UNDETERMINED}) == []  # e.g. occluded from the next viewpoint
     assert detector.sensed({4: MISSING}) == [4]
 
 

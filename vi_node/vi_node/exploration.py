@@ -6,7 +6,8 @@ And: "If a tile is in state 'occluded', the VI-robot has to re-scan the building
 position before the building process can proceed."
 
 Each expected tile carries a priority: highest just after a robot reported it placed (it has to be
-checked), high while its state is undetermined (occluded, or never seen), and otherwise growing
+checked), high while its state is undetermined (occluded, or never seen) or a single scan called it
+missing (to be confirmed, preferably from elsewhere), and otherwise growing
 with the time since it was last seen, so that every tile is looked at again now and then (tiles
 can disappear while building). Candidate viewpoints stand on rings around the structure, facing
 it; the next one is the candidate whose view (predicted by ray tracing S_a, see
@@ -94,14 +95,16 @@ class Exploration:
         for tile_id, k in self.tiles.items():
             if k.placed_at > k.judged_at:
                 out[tile_id] = w.just_placed
-            elif k.state in (OCCLUDED, UNKNOWN):
+            elif k.state in (OCCLUDED, UNKNOWN, MISSING):  # a missing call wants confirming
                 out[tile_id] = w.undetermined
             else:
                 out[tile_id] = min(1.0, (now - k.judged_at) / w.stale_time)
         return out
 
     def unresolved(self) -> list[int]:
-        return sorted(t for t, k in self.tiles.items() if k.placed_at > k.judged_at or k.state in (OCCLUDED, UNKNOWN))
+        return sorted(
+            t for t, k in self.tiles.items() if k.placed_at > k.judged_at or k.state in (OCCLUDED, UNKNOWN, MISSING)
+        )
 
     def choose(self, candidates: Sequence[Pose2], here: Pose2, now: float, gains: Sequence[float]) -> tuple[int, float]:
         """Index of the best candidate and its score.
