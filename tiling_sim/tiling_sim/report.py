@@ -28,6 +28,8 @@ from tiling_sim.trial_record import (  # noqa: E402
     TrialRecord,
     allocation_rows,
     detection_stats,
+    false_missing_calls,
+    removal_outcomes,
     schedule,
 )
 
@@ -255,7 +257,12 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "auctions": len(record.awards), "award_latencies": record.award_latencies,
             "plans": [{"revision": p.revision, "tasks": p.tasks} for p in record.plans],
             "placements": [{"t": e.t, "tile": e.tile, "robot": e.robot} for e in record.events if e.kind == "placed"],
-            "removals": [{"t": e.t, "tile": e.tile} for e in record.removals()],
+            "removals": [
+                {"t": o.removed_at, "tile": o.tile, "detected_at": o.detected_at, "back_at": o.back_at,
+                 "scans_calling_it_present": o.called_present}
+                for o in removal_outcomes(record)
+            ],
+            "false_missing_calls": false_missing_calls(record),
             "decisions": record.decisions,
         })
     return {"structure": result.structure.name, "robots": result.config.robot_names, "trials": trials}

@@ -189,6 +189,16 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
     return stats
 
 
+def false_missing_calls(record: TrialRecord) -> list[dict[str, float]]:
+    """Auctions opened for tiles that were physically in place: when, which tile."""
+    intervals = record.presence_intervals()
+    return [
+        {"t": a.t, "tile": a.tile}
+        for a in record.announcements
+        if a.reason == REASON_MISSING and record.present_at(a.tile, a.t, intervals)
+    ]
+
+
 def allocation_rows(record: TrialRecord, robots: Iterable[str]) -> list[dict[str, str]]:
     """Table 2: one row per placement or removal, in time order, in the column of its robot.
 
