@@ -31,7 +31,7 @@ class MisplacementSettings:
     shift: float = 0.015  # m, flag when the fitted offset of the tile exceeds this ...
     turn: float = math.radians(10.0)  # rad, ... or its fitted turn exceeds this
     reach: float = 0.04  # m, points this close to a tile (and nearest to it) are its points
-    min_points: int = 50  # fewer points: the tile cannot be judged
+    min_points: int = 40  # fewer points: the tile cannot be judged
     min_off_share: float = 0.15  # refit only when this share of its points is off its faces
     improvement: float = 0.85  # the refit must bring the median distance below this share of it before
     iterations: int = 8
@@ -71,11 +71,14 @@ def assess(
     camera_position: Array,
     settings: MisplacementSettings,
     tiles: Sequence[PlacedTile] | None = None,
+    solid: Sequence[bool] | None = None,
+    suspects: Sequence[int] = (),
 ) -> dict[int, TileFit]:
     """Judge every tile (by index into patches.tile_ids) from the aligned candidate points.
 
     With the expected `tiles` (in patches' order), a fitted motion that would push a tile into
-    another one is not believed (tiles do not interpenetrate).
+    another one that is there (`solid`, default: all) is not believed: tiles do not interpenetrate.
+    `suspects` (tile indices) are refitted even when the first linearised step says little.
 
     `points` (N, 3, map frame) with their depth in the camera (m) and, from one closest-point query
     on S_a, the nearest expected tile, the closest point on it and the surface normal there.
@@ -129,7 +132,7 @@ def assess(
             math.hypot(step[index, 0], step[index, 1]) >= 0.4 * settings.shift
             or abs(step[index, 2]) >= 0.4 * settings.turn
         )
-        if not (judged and hint):
+        if not (judged and (hint or index in suspects)):
             fits[int(index)] = TileFit(
                 int(points_of[index]), rms, judged, False, (0.0, 0.0, 0.0), rms, step[index]
             )
@@ -151,7 +154,9 @@ def assess(
             math.hypot(offset[0], offset[1]) <= settings.max_shift and abs(offset[2]) <= settings.max_turn
         )
         moved = (
-            (shifted or turned) and believable and (tiles is None or _fits_among(tiles, int(index), offset))
+            (shifted or turned)
+            and believable
+            and (tiles is None or _fits_among(tiles, int(index), offset, solid))
         )
         # the refit must explain the points better; a clear turn of a small tile barely changes the
         # distances (the noise is as large as the corners' motion), its significance speaks for it
@@ -182,12 +187,14 @@ def moved_tile(tile: PlacedTile, offset: tuple[float, float, float]) -> PlacedTi
     return PlacedTile(tile.tile_id, tile.type_name, tile.shape, turn @ tile.rotation, position)
 
 
-def _fits_among(tiles: Sequence[PlacedTile], index: int, offset: tuple[float, float, float]) -> bool:
-    """Whether the tile, moved by `offset`, stays clear of every other expected tile (5 mm slack)."""
+def _fits_among(
+    tiles: Sequence[PlacedTile], index: int, offset: tuple[float, float, float], solid: Sequence[bool] | None
+) -> bool:
+    """Whether the tile, moved by `offset`, stays clear of every other tile that is there (5 mm slack)."""
     moved = moved_tile(tiles[index], offset)
     low, high = moved.aabb
     for k, other in enumerate(tiles):
-        if k == index:
+        if k == index or (solid is not None and not solid[k]):
             continue
         other_low, other_high = other.aabb
         if np.any(other_low > high + 0.01) or np.any(other_high < low - 0.01):
