@@ -188,8 +188,8 @@ class InspectionPipeline:
         result = self._align_and_classify(cloud, camera, model, prior, pose, floor, candidates, timer, notes)
         if paper or not result.ok or not any(flagged for flagged, _, _ in result.misplacement.values()):
             return result
-        # a misplaced tile pulls the alignment towards where it lies: align once more without the
-        # points around the tiles found misplaced, and judge everything again from there
+        # a misplaced tile pulls the alignment towards where it lies: align once more, from the
+        # coarse fit, without the points around the tiles found misplaced, and judge everything again
         assert result.camera_pose is not None
         keep = np.ones(len(candidates), dtype=bool)
         correction = result.camera_pose @ np.linalg.inv(pose)  # the first ICP's
@@ -212,12 +212,12 @@ class InspectionPipeline:
             camera,
             model,
             prior,
-            result.camera_pose,
+            pose,  # from the coarse fit again: the first ICP may have been dragged off
             floor,
-            placed.subset(keep),
+            candidates.subset(keep),
             timer,
             notes,
-            rejudge=placed,
+            rejudge=candidates,
             suspects=[
                 model.tile_ids.index(t) for t, (flagged, _, _) in result.misplacement.items() if flagged
             ],
@@ -437,6 +437,8 @@ class InspectionPipeline:
             model.tiles,
             [t.state != TileState.MISSING for t in result.tiles],
             suspects,
+            [t.see_through + t.in_front >= 1 for t in result.tiles],
+            model.scene,
         )
         for index, fit in fits.items():
             tile = result.tiles[index]
