@@ -161,8 +161,13 @@ def save_png(path: str, reports: dict[str, ModeReport]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(reports), figsize=(6 * len(reports), 4.5), squeeze=False)
-    for ax, (title, report) in zip(axes[0], reports.items(), strict=True):
+    columns = min(2, len(reports))
+    rows = math.ceil(len(reports) / columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(7.5 * columns, 4.8 * rows), squeeze=False)
+    for ax in axes.flat[len(reports) :]:
+        ax.set_visible(False)
+    for ax, (title, report) in zip(axes.flat, reports.items(), strict=False):
+        title = title.replace(" (next", "\n(next")
         labels = sorted(report.by_type)
         tallies = [report.by_type[k] for k in labels]
         x = np.arange(len(labels))
