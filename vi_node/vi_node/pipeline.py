@@ -139,6 +139,9 @@ class InspectionPipeline:
                 True, "", [], None, timings=timer.timings, notes=["S_a is empty: nothing to inspect"]
             )
         notes: list[str] = []
+        mismatch = camera.check_cloud(cloud)  # the driver's x = (u - cx) z / fx must hold
+        if mismatch:
+            notes.append(mismatch + ": check the intrinsics parameters")
         timer.lap("check")
 
         prior = camera_prior(overhead, self.mount)
