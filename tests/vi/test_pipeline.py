@@ -133,6 +133,15 @@ def test_lower_resolution_clouds_are_scaled_from_the_intrinsics() -> None:
     assert shift < 0.015 and turn < math.radians(1.0)
 
 
+def test_intrinsics_that_do_not_match_the_cloud_are_noted() -> None:
+    cloud, _, overhead = good_scan()
+    wrong = InspectionSettings().with_values({"intrinsics": [525.0, 525.0, 319.5, 239.5]})
+    result = InspectionPipeline(structure(), None, wrong).inspect(cloud, OverheadPose(*overhead))
+    assert any("do not match the intrinsics fx=525.0" in note for note in result.notes)
+    right = InspectionPipeline(structure(), None, DEFAULT).inspect(cloud, OverheadPose(*overhead))
+    assert right.ok and not any("intrinsics" in note for note in right.notes)
+
+
 def good_scan() -> tuple[np.ndarray, tuple[float, float, float], tuple[float, float, float]]:
     paper = structure()
     scene = Scene(paper, tuple(paper.tile_ids), ())

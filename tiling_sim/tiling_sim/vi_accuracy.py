@@ -1,16 +1,21 @@
-"""`ros2 run tiling_sim vi_accuracy`: how well the visual inspection finds removed tiles.
+"""`ros2 run tiling_sim vi_accuracy`: how well the visual inspection finds removed and misplaced tiles.
 
-    ros2 run tiling_sim vi_accuracy [--scenes N] [--structures paper_14,gate_9] [--modes paper]
-        [--seed S] [--png FILE]
+    ros2 run tiling_sim vi_accuracy [--scenes N] [--structures paper_14,gate_9] [--modes default,paper]
+        [--views 3] [--misplaced-scenes N] [--errors-at-bound] [--seed S] [--png FILE]
 
 Generates random scenes as in the paper's trials (section 3): a structure part- or fully built,
 1-3 tiles removed (each one nothing else rests on), sometimes another robot and a loose tile
 nearby; the VI robot 0.8-1.5 m away, its overhead pose off by up to 5 cm and 10 degrees (uniform).
-Every scene is scanned by the simulated Kinect and inspected; the table counts, per tile type
-(size = longest side), removed tiles detected (missing) / undetermined (occluded, or no result
-because the scan could not be aligned) / called present, and present tiles called missing, next
-to the paper's figures (22 removed: 12 detected, 10 undetermined, 0 called present; 1 present
-tile called missing). Also the alignment: the corrected camera pose against the truth.
+Every scene is scanned by the simulated Kinect and inspected in every mode, from one view and
+fused over up to `--views` views (the next ones chosen by ray tracing among 12 poses around the
+structure, until every tile is resolved or no pose would resolve more). Per tile type (size =
+longest side) the tables count removed tiles detected (missing) / undetermined (occluded, or no
+result because no scan could be aligned) / called present, and present tiles called missing or
+misplaced, next to the paper's figures (22 removed: 12 detected, 10 undetermined, 0 called
+present; 1 present tile called missing); and the alignment: corrected camera pose against the
+truth. A second experiment shifts one tile by 2-3 cm or turns it by 15-30 degrees and counts, in
+the default mode, the views that see it (40 pixels or more) in which it is flagged MISPLACED, and
+the present tiles flagged in error.
 """
 
 from __future__ import annotations
@@ -156,8 +161,13 @@ def save_png(path: str, reports: dict[str, ModeReport]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(reports), figsize=(6 * len(reports), 4.5), squeeze=False)
-    for ax, (title, report) in zip(axes[0], reports.items(), strict=True):
+    columns = min(2, len(reports))
+    rows = math.ceil(len(reports) / columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(7.5 * columns, 4.8 * rows), squeeze=False)
+    for ax in axes.flat[len(reports) :]:
+        ax.set_visible(False)
+    for ax, (title, report) in zip(axes.flat, reports.items(), strict=False):
+        title = title.replace(" (next", "\n(next")
         labels = sorted(report.by_type)
         tallies = [report.by_type[k] for k in labels]
         x = np.arange(len(labels))

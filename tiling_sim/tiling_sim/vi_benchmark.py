@@ -1,7 +1,7 @@
 """`ros2 run tiling_sim vi_benchmark`: time the inspection per 640x480 scan, stage by stage, next to
 a plain Open3D pipeline a user would write, in the same run on the same scans.
 
-    ros2 run tiling_sim vi_benchmark [--scans N] [--repeat R] [--modes paper] [--seed S]
+    ros2 run tiling_sim vi_benchmark [--scans N] [--repeat R] [--modes default,paper] [--seed S]
 
 The scans are simulated Kinect v1 frames of the paper's structure (a few tiles removed) from
 viewpoints around it, with the paper's overhead errors. Every pipeline runs on every scan `repeat`

@@ -15,13 +15,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tiling_assembly.contacts import separation
 from tiling_assembly.geometry import PlacedTile, rotation_from_rpy
-from vi_node.patches import PlanarPatches
+from vi_node.patches import PlanarPatches, Projection
 
 Array = NDArray[np.float64]
 
@@ -31,10 +32,10 @@ class MisplacementSettings:
     shift: float = 0.015  # m, flag when the fitted offset of the tile exceeds this ...
     turn: float = math.radians(10.0)  # rad, ... or its fitted turn exceeds this
     reach: float = 0.04  # m, points this close to a tile (and nearest to it) are its points
-    min_points: int = 50  # fewer points: the tile cannot be judged
+    min_points: int = 40  # fewer points: the tile cannot be judged
     min_off_share: float = 0.15  # refit only when this share of its points is off its faces
     improvement: float = 0.85  # the refit must bring the median distance below this share of it before
-    iterations: int = 8
+    iterations: int = 6
     max_shift: float = 0.06  # m, fits beyond these are not believed ...
     max_turn: float = math.radians(45.0)  # rad, ... (a run-off fit, not a misplaced tile)
     significance: float = 8.0  # a fitted shift must stand this many sigmas clear of zero ...
@@ -71,11 +72,18 @@ def assess(
     camera_position: Array,
     settings: MisplacementSettings,
     tiles: Sequence[PlacedTile] | None = None,
+    solid: Sequence[bool] | None = None,
+    suspects: Sequence[int] = (),
+    disturbed: Sequence[bool] | None = None,
+    surfaces: TileSurfaces | None = None,
 ) -> dict[int, TileFit]:
     """Judge every tile (by index into patches.tile_ids) from the aligned candidate points.
 
     With the expected `tiles` (in patches' order), a fitted motion that would push a tile into
-    another one is not believed (tiles do not interpenetrate).
+    another one that is there (`solid`, default: all) is not believed: tiles do not interpenetrate.
+    `suspects` (tile indices) are refitted even when the first linearised step says little; with
+    `disturbed`, only tiles whose pixels do not all agree with the model are refitted at all.
+    `surfaces` answers the closest-point queries of the refits (default: the patch hierarchy).
 
     `points` (N, 3, map frame) with their depth in the camera (m) and, from one closest-point query
     on S_a, the nearest expected tile, the closest point on it and the surface normal there.
@@ -129,7 +137,8 @@ def assess(
             math.hypot(step[index, 0], step[index, 1]) >= 0.4 * settings.shift
             or abs(step[index, 2]) >= 0.4 * settings.turn
         )
-        if not (judged and hint):
+        possible = disturbed is None or bool(disturbed[index])
+        if not (judged and possible and (hint or index in suspects)):
             fits[int(index)] = TileFit(
                 int(points_of[index]), rms, judged, False, (0.0, 0.0, 0.0), rms, step[index]
             )
@@ -142,7 +151,16 @@ def assess(
             )
             continue
         offset, before, after, shift_sigmas, turn_sigmas, explained = _fit_tile(
-            points, nearest_tile, distance, mine, claimed, int(index), patches, camera_position, settings
+            points,
+            nearest_tile,
+            distance,
+            mine,
+            claimed,
+            int(index),
+            patches,
+            camera_position,
+            settings,
+            surfaces,
         )
         shifted = math.hypot(offset[0], offset[1]) >= settings.shift and shift_sigmas >= settings.significance
         turned = abs(offset[2]) >= settings.turn and turn_sigmas >= settings.turn_significance
@@ -151,7 +169,9 @@ def assess(
             math.hypot(offset[0], offset[1]) <= settings.max_shift and abs(offset[2]) <= settings.max_turn
         )
         moved = (
-            (shifted or turned) and believable and (tiles is None or _fits_among(tiles, int(index), offset))
+            (shifted or turned)
+            and believable
+            and (tiles is None or _fits_among(tiles, int(index), offset, solid))
         )
         # the refit must explain the points better; a clear turn of a small tile barely changes the
         # distances (the noise is as large as the corners' motion), its significance speaks for it
@@ -182,12 +202,14 @@ def moved_tile(tile: PlacedTile, offset: tuple[float, float, float]) -> PlacedTi
     return PlacedTile(tile.tile_id, tile.type_name, tile.shape, turn @ tile.rotation, position)
 
 
-def _fits_among(tiles: Sequence[PlacedTile], index: int, offset: tuple[float, float, float]) -> bool:
-    """Whether the tile, moved by `offset`, stays clear of every other expected tile (5 mm slack)."""
+def _fits_among(
+    tiles: Sequence[PlacedTile], index: int, offset: tuple[float, float, float], solid: Sequence[bool] | None
+) -> bool:
+    """Whether the tile, moved by `offset`, stays clear of every other tile that is there (5 mm slack)."""
     moved = moved_tile(tiles[index], offset)
     low, high = moved.aabb
     for k, other in enumerate(tiles):
-        if k == index:
+        if k == index or (solid is not None and not solid[k]):
             continue
         other_low, other_high = other.aabb
         if np.any(other_low > high + 0.01) or np.any(other_high < low - 0.01):
@@ -207,6 +229,7 @@ def _fit_tile(
     patches: PlanarPatches,
     camera_position: Array,
     settings: MisplacementSettings,
+    surfaces: TileSurfaces | None = None,
 ) -> tuple[tuple[float, float, float], float, float, float, float, NDArray[np.int64]]:
     """Refit tile `index` on its points, then once more on the points that the moved tile explains
     better than any other tile does (a moved tile's points may have been closer to a neighbour's
@@ -214,14 +237,21 @@ def _fit_tile(
     RMS distance of the final points before and after, the significance (in standard deviations)
     of the fitted shift and turn, and the points the moved tile explains."""
     centre = patches.tile_centroid[index]
-    theta, shift, after, covariance = _refit(points[mine], index, patches, camera_position, settings)
+    theta, shift, after, covariance = _refit(
+        points[mine], index, patches, camera_position, settings, surfaces
+    )
     chosen = mine
     for _ in range(3):  # a tile that moved far takes a few rounds to collect all of its points
         reach = settings.reach + float(np.hypot(*shift))
         low, high = patches.tile_low[index] - reach, patches.tile_high[index] + reach
         around = np.flatnonzero(np.all((points >= low) & (points <= high), axis=1) & ~claimed)
-        projection = patches.project(
-            _apply(points[around], centre, theta, shift), settings.reach, camera_position, only_tile=index
+        projection = _project(
+            patches,
+            surfaces,
+            _apply(points[around], centre, theta, shift),
+            index,
+            settings.reach,
+            camera_position,
         )
         keep = projection.found & ((nearest_tile[around] == index) | (projection.distance < distance[around]))
         if keep.sum() < settings.min_points or np.array_equal(around[keep], chosen):
@@ -229,13 +259,13 @@ def _fit_tile(
         chosen = around[keep]
         previous = (theta, shift.copy())
         theta, shift, after, covariance = _refit(
-            points[chosen], index, patches, camera_position, settings, (theta, shift)
+            points[chosen], index, patches, camera_position, settings, surfaces, (theta, shift)
         )
         if abs(theta - previous[0]) < 0.005 and np.linalg.norm(shift - previous[1]) < 0.001:
             break
     # how well the points fit the tile where it should be and where the fit puts it: median
     # distances (robust to the odd point of a neighbour), on the same points
-    unmoved = patches.project(points[chosen], 0.08, camera_position, only_tile=index)
+    unmoved = _project(patches, surfaces, points[chosen], index, 0.08, camera_position)
     # how many standard deviations the fitted shift and turn are away from "in place"
     try:
         shift_sigmas = float(np.sqrt(shift @ np.linalg.solve(covariance[:2, :2], shift)))
@@ -245,14 +275,44 @@ def _fit_tile(
     step = 2 * math.pi / patches.tile_symmetry[index]
     turn = theta - round(theta / step) * step
     turn_sigmas = abs(turn) / math.sqrt(max(covariance[2, 2], 1e-12))
-    final = patches.project(
-        _apply(points[chosen], centre, theta, shift), 0.08, camera_position, only_tile=index
+    final = _project(
+        patches, surfaces, _apply(points[chosen], centre, theta, shift), index, 0.08, camera_position
     )
     before = float(np.median(np.where(unmoved.found, unmoved.distance, 0.08)))
     after = float(np.median(np.where(final.found, final.distance, 0.08)))
     explained = chosen[final.found & (final.distance <= 0.006)]
     x, y, _ = _motion(centre, theta, shift)
     return (x, y, -turn), before, after, shift_sigmas, turn_sigmas, explained
+
+
+class TileSurfaces(Protocol):
+    """Closest points on one tile's surface: (closest points, normals there) for (N, 3) points."""
+
+    def closest_on_tile(self, points: Array, index: int) -> tuple[Array, Array]: ...
+
+
+def _project(
+    patches: PlanarPatches,
+    surfaces: TileSurfaces | None,
+    points: Array,
+    index: int,
+    reach: float,
+    camera_position: Array,
+) -> Projection:
+    """Closest points on tile `index` (within `reach`), by `surfaces` or the patch hierarchy."""
+    if surfaces is None:
+        return patches.project(points, reach, camera_position, only_tile=index)
+    closest, normal = surfaces.closest_on_tile(points, index)
+    distance = np.sqrt(np.einsum("ij,ij->i", points - closest, points - closest))
+    # a camera cannot see a face turned away from it: those few points go through the patches
+    away = np.flatnonzero(np.einsum("ij,ij->i", normal, camera_position - closest) < 0)
+    if len(away):
+        again = patches.project(points[away], reach, camera_position, only_tile=index)
+        closest[away], normal[away], distance[away] = again.closest, again.normal, again.distance
+    found = distance <= reach
+    return Projection(
+        closest, normal, np.where(found, index, -1), np.where(found, 0, -1), np.where(found, distance, np.inf)
+    )
 
 
 def _apply(points: Array, centre: Array, theta: float, shift: Array) -> Array:
@@ -271,6 +331,7 @@ def _refit(
     patches: PlanarPatches,
     camera_position: Array,
     settings: MisplacementSettings,
+    surfaces: TileSurfaces | None,
     start: tuple[float, Array] = (0.0, np.zeros(2)),
 ) -> tuple[float, Array, float, Array]:
     """The planar motion G (turn theta about the tile's centre, then shift) taking `points` onto
@@ -285,7 +346,7 @@ def _refit(
     covariance = np.eye(3)
     for _ in range(settings.iterations):
         moved = _apply(points, centre, theta, shift)
-        projection = patches.project(moved, 0.08, camera_position, only_tile=index)
+        projection = _project(patches, surfaces, moved, index, 0.08, camera_position)
         found = projection.found
         if found.sum() < 6:
             break

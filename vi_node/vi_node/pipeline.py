@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -139,6 +139,9 @@ class InspectionPipeline:
                 True, "", [], None, timings=timer.timings, notes=["S_a is empty: nothing to inspect"]
             )
         notes: list[str] = []
+        mismatch = camera.check_cloud(cloud)  # the driver's x = (u - cx) z / fx must hold
+        if mismatch:
+            notes.append(mismatch + ": check the intrinsics parameters")
         timer.lap("check")
 
         prior = camera_prior(overhead, self.mount)
@@ -188,8 +191,8 @@ class InspectionPipeline:
         result = self._align_and_classify(cloud, camera, model, prior, pose, floor, candidates, timer, notes)
         if paper or not result.ok or not any(flagged for flagged, _, _ in result.misplacement.values()):
             return result
-        # a misplaced tile pulls the alignment towards where it lies: align once more without the
-        # points around the tiles found misplaced, and judge everything again from there
+        # a misplaced tile pulls the alignment towards where it lies: align once more, from the
+        # coarse fit, without the points around the tiles found misplaced, and judge everything again
         assert result.camera_pose is not None
         keep = np.ones(len(candidates), dtype=bool)
         correction = result.camera_pose @ np.linalg.inv(pose)  # the first ICP's
@@ -212,12 +215,15 @@ class InspectionPipeline:
             camera,
             model,
             prior,
-            result.camera_pose,
+            pose,  # from the coarse fit again: the first ICP may have been dragged off
             floor,
-            placed.subset(keep),
+            candidates.subset(keep),
             timer,
             notes,
-            rejudge=placed,
+            rejudge=candidates,
+            suspects=[
+                model.tile_ids.index(t) for t, (flagged, _, _) in result.misplacement.items() if flagged
+            ],
         )
         return self._unless_all_moved(second if second.ok else result, timer, notes)
 
@@ -244,9 +250,11 @@ class InspectionPipeline:
         timer: _Timer,
         notes: list[str],
         rejudge: Candidates | None = None,
+        suspects: Sequence[int] = (),
     ) -> ScanResult:
         """ICP of `candidates` (and the floor) from `pose`, the checks, the virtual scan and the
-        classification. `rejudge`: the candidates to judge placement on, when ICP used fewer."""
+        classification. `rejudge`: the candidates to judge placement on, when ICP used fewer;
+        `suspects`: tiles (indices) found misplaced before, refitted whatever the first step says."""
         s = self.settings
         paper = s.mode == "paper"
         structure_correspond = self._correspondence_function(model, pose[:3, 3].copy())
@@ -326,7 +334,7 @@ class InspectionPipeline:
             self._classify_default(evidence, model, result)
             timer.lap("classify")
             assert nearest_tile is not None
-            self._judge_placement(model, aligned, nearest_tile, closest, normals, pose, result)
+            self._judge_placement(model, aligned, nearest_tile, closest, normals, pose, result, suspects)
             timer.lap("misplacement")
         return result
 
@@ -417,6 +425,7 @@ class InspectionPipeline:
         normals: Array,
         pose: Array,
         result: ScanResult,
+        suspects: Sequence[int] = (),
     ) -> None:
         """Per-tile residuals, and MISPLACED for tiles whose points a planar motion explains better."""
         fits = assess(
@@ -429,14 +438,21 @@ class InspectionPipeline:
             pose[:3, 3],
             self.misplacement_settings,
             model.tiles,
+            [t.state != TileState.MISSING for t in result.tiles],
+            suspects,
+            [t.see_through + t.in_front >= 1 for t in result.tiles],
+            model.scene,
         )
         for index, fit in fits.items():
             tile = result.tiles[index]
             tile.residual = fit.residual
-            # a tile that moved has left some of its expected surface: where every judged pixel
-            # still shows it, the refit is noise (thin data at range), not a misplacement
-            vacated = tile.see_through + tile.in_front >= 1
-            misplaced = fit.misplaced and vacated
+            # the pixels must agree with the refit: a tile that moved has left some of its expected
+            # surface (see-through) or stands in front of it; a shift of 1.5 cm or more shows on a
+            # good share of its pixels, a turn of a small tile on a few corners
+            disagree = tile.see_through + tile.in_front
+            shifted = math.hypot(fit.offset[0], fit.offset[1]) >= 0.6 * self.misplacement_settings.shift
+            needed = max(1.0, 0.05 * (tile.physical + disagree)) if shifted else 1.0
+            misplaced = fit.misplaced and disagree >= needed
             if fit.judged:
                 result.misplacement[tile.tile_id] = (misplaced, fit.offset, fit.residual)
             if misplaced:

@@ -78,6 +78,8 @@ class VirtualScene:
         self.triangle_tile = np.concatenate(tri_tile).astype(np.int64) if tiles else np.zeros(0, np.int64)
         self.triangle_face = np.concatenate(tri_face).astype(np.int64) if tiles else np.zeros(0, np.int64)
         self.has_tiles = bool(tiles)
+        self._tiles = list(tiles)
+        self._tile_scenes: dict[int, object] = {}  # built on demand, for refitting single tiles
 
     def cast(
         self,
@@ -111,6 +113,26 @@ class VirtualScene:
         cosine[hit] = np.abs(np.einsum("ij,ij->i", d, n)) / np.sqrt(np.einsum("ij,ij->i", d, d))
         depth = np.where(in_range, depth, np.float32(np.inf))
         return VirtualScan(rows, cols, depth, tile, face, cosine, (camera.width, camera.height))
+
+    def closest_on_tile(self, points: Array, index: int) -> tuple[Array, Array]:
+        """Closest points on tile `index` (of the scene's tiles) alone, and the normals there."""
+        scene = self._tile_scenes.get(index)
+        if scene is None:
+            o3d = import_open3d()
+            tile = self._tiles[index]
+            triangles, _ = tile.triangles
+            scene = o3d.t.geometry.RaycastingScene()
+            scene.add_triangles(
+                self._core.Tensor(tile.vertices.astype(np.float32)),
+                self._core.Tensor(triangles.astype(np.uint32)),
+            )
+            self._tile_scenes[index] = scene
+        result = scene.compute_closest_points(  # type: ignore[attr-defined]
+            self._core.Tensor.from_numpy(np.ascontiguousarray(points, dtype=np.float32))
+        )
+        return result["points"].numpy().astype(np.float64), result["primitive_normals"].numpy().astype(
+            np.float64
+        )
 
     def closest_points(self, points: Array) -> tuple[Array, Array, NDArray[np.int64]]:
         """Closest point on S_a, the normal there and the tile index, for every point."""
