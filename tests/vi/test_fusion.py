@@ -38,6 +38,18 @@ def test_a_tile_seen_present_then_missing_is_missing() -> None:
     assert fusion.state_of(3) == TileState.MISSING
 
 
+def test_a_few_see_through_pixels_make_a_present_tile_undetermined_not_present() -> None:
+    fusion = TileFusion()
+    for _ in range(5):
+        fusion.add([3], seen(200, 2, 220), [P])
+    fusion.add([3], seen(0, 5, 160), [O])  # removed, seen from where only 5 of its pixels show
+    assert fusion.state_of(3) == TileState.OCCLUDED  # no longer reported present on old evidence
+    fusion.add([3], seen(0, 20, 160), [O])  # another glimpse adds up to a decision
+    assert fusion.state_of(3) == TileState.MISSING
+    fusion.add([3], seen(2, 0, 160), [O])  # two stray pixels are no reason to doubt it
+    assert fusion.state_of(3) == TileState.MISSING
+
+
 def test_replaced_tiles_start_afresh_and_unknown_tiles_are_unknown() -> None:
     fusion = TileFusion()
     fusion.add([1, 2], TileEvidence(*(np.array([100, 2]),) * 6), [P, M])

@@ -59,6 +59,7 @@ class ExperimentObserver(Node):
         self.world_started = False
         self.start_sent = False
         self.complete = False
+        self.last_counts: dict[int, tuple[int, int, int]] = {}
         self.start_pub = self.create_publisher(Empty, "/sim/start", EVENTS)
         self.create_subscription(String, "/sim/events", self.on_event, EVENTS)
         self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
@@ -115,7 +116,11 @@ class ExperimentObserver(Node):
 
     def on_states(self, msg: TileStateArray) -> None:
         states = {s.tile_id: STATE_NAMES.get(s.state, "unknown") for s in msg.states}
-        self.record.scans.append(Scan(t=seconds(msg.header.stamp), states=states))
+        # fused states repeat what earlier scans saw: a tile's counts change when this scan saw it
+        counts = {s.tile_id: (s.scan_count, s.physical_support, s.see_through_support) for s in msg.states}
+        fresh = frozenset(t for t, c in counts.items() if self.last_counts.get(t) != c)
+        self.last_counts.update(counts)
+        self.record.scans.append(Scan(t=seconds(msg.header.stamp), states=states, fresh=fresh))
         self.record.final_states.update(states)
 
     def on_announcement(self, msg: AuctionAnnouncement) -> None:

@@ -29,6 +29,7 @@ class WorldEvent:
 class Scan:
     t: float
     states: dict[int, str]  # tile id -> present / missing / occluded / misplaced
+    fresh: frozenset[int] = frozenset()  # tiles this scan saw (fused states repeat older views)
 
 
 @dataclass(frozen=True)
@@ -118,7 +119,7 @@ class RemovalOutcome:
     tile: int
     removed_at: float
     detected_at: float | None  # when it was auctioned as missing
-    called_present: int  # scans that called it present while it was away
+    called_present: int  # scans that saw it and called it present while it was away
     back_at: float | None  # when it was physically in place again
 
 
@@ -157,7 +158,8 @@ def removal_outcomes(record: TrialRecord) -> list[RemovalOutcome]:
             None,
         )
         called_present = sum(
-            1 for s in record.scans if removal.t < s.t < end and s.states.get(removal.tile) == PRESENT
+            1 for s in record.scans
+            if removal.t < s.t < end and removal.tile in s.fresh and s.states.get(removal.tile) == PRESENT
         )
         outcomes.append(RemovalOutcome(removal.tile, removal.t, detected, called_present, back))
     return outcomes
@@ -183,7 +185,7 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
             stats.present_called_missing += 1
     for scan in record.scans:
         for tile, state in scan.states.items():
-            if record.present_at(tile, scan.t, intervals):
+            if tile in scan.fresh and record.present_at(tile, scan.t, intervals):
                 stats.present_judgements += 1
                 stats.present_judged_missing += state == MISSING
     return stats

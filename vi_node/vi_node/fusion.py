@@ -2,9 +2,11 @@
 
 The paper re-scans from another position when a tile is occluded; here every scan's evidence is
 kept per tile, so a tile undetermined from one view is resolved by adding what other views saw of
-it. Tiles can be removed while the structure is built: when a scan decides a tile clearly the
-other way than the fused evidence does, the old evidence is dropped and the new scan counts alone
-(a tile seen present and later seen missing is reported missing). A tile that is (re)placed starts
+it. Tiles can be removed while the structure is built: when a scan's own pixels of a tile lean the
+other way than the fused decision (most of them see through a tile fused present, or agree with a
+tile fused missing), even too few of them to decide alone, the old evidence is dropped and the new
+scan counts alone: the tile is undetermined until new views decide it (a tile seen present and
+later seen missing is reported missing, and not present in between). A tile that is (re)placed starts
 afresh. A tile found misplaced stays so until a scan sees it present and in place.
 
 Paper mode fuses by its own rules: the latest scan that resolved a tile (present or missing)
@@ -23,6 +25,7 @@ from vi_node.evidence import EvidenceSettings, TileEvidence, decide
 from vi_node.scan_result import ScanResult, TileResult
 
 RESOLVED = (TileState.PRESENT, TileState.MISSING)
+MIN_LEANING_PIXELS = 3  # fewer observed pixels of a tile say nothing about a change
 
 
 @dataclass
@@ -79,7 +82,7 @@ class TileFusion:
                 fused.evidence = fused.evidence + mine
                 if resolved or fused.state not in RESOLVED:
                     fused.state = scan_state
-            elif resolved and fused.state in RESOLVED and fused.state != scan_state:
+            elif fused.state in RESOLVED and self._leaning(mine) not in (None, fused.state):
                 # the tile changed: this scan counts alone
                 fused = FusedTile(mine, scan_state, largest_view=int(mine.judged[0]))
             else:
@@ -95,6 +98,18 @@ class TileFusion:
                     fused.misplaced, fused.offset = False, (0.0, 0.0, 0.0)
             self.tiles[tile_id] = fused
         return {t: self.tiles[t] for t in ids}
+
+    def _leaning(self, evidence: TileEvidence) -> TileState | None:
+        """Which way a single scan's pixels of a tile point, however few (None: no clear way)."""
+        agree, through = int(evidence.agree[0]), int(evidence.see_through[0])
+        observed = agree + through
+        if observed < MIN_LEANING_PIXELS:
+            return None
+        if through >= self.settings.missing_fraction * observed:
+            return TileState.MISSING
+        if agree >= self.settings.present_fraction * observed:
+            return TileState.PRESENT
+        return None
 
     def _decide(self, fused: FusedTile) -> TileState:
         """The evidence summed over the views, with "enough of the tile seen" measured against the
