@@ -38,7 +38,7 @@ help:
 	@echo "make clean   remove build/ install/ log/;  make distclean also removes .venv"
 
 demo: build
-	$(WS) ros2 run tiling_assembly validate config/structures/paper_14.yaml
+	$(WS) ros2 run tiling_sim experiment --structure config/structures/paper_14.yaml --report reports/paper_14
 
 test: build
 	$(WS) python -m pytest

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from conftest import STRUCTURES
 from rclpy.serialization import deserialize_message, serialize_message
-from tiling_assembly_msgs.msg import Structure as StructureMsg
-from tiling_assembly_msgs.msg import TileType
 
 from tiling_assembly.messages import structure_from_msg, structure_to_msg
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.msg import Structure as StructureMsg
+from tiling_assembly_msgs.msg import TileType
 
 
 @pytest.mark.parametrize("name", ["paper_14", "gate_9", "pyramid_91"])

@@ -23,6 +23,13 @@ from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from assembly_node.bidding import compute_bid
+from assembly_node.executor import Outcome, PlanExecutor, StepKind
+from tiling_assembly.messages import pose_of, structure_from_msg
+from tiling_assembly.structure import StructureError
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly.time_model import TimeModel
 from tiling_assembly_msgs.action import PlaceTile
 from tiling_assembly_msgs.msg import (
     AssemblyPlan,
@@ -34,13 +41,6 @@ from tiling_assembly_msgs.msg import (
     RobotStatus,
     Structure,
 )
-
-from assembly_node.bidding import compute_bid
-from assembly_node.executor import Outcome, PlanExecutor, StepKind
-from tiling_assembly.messages import pose_of, structure_from_msg
-from tiling_assembly.structure import StructureError
-from tiling_assembly.structure_file import load_structure
-from tiling_assembly.time_model import TimeModel
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -180,7 +180,7 @@ class AssemblyNode(Node):
         state = self.executor_state
         if state is None:
             return
-        if msg.reason == AuctionAnnouncement.REASON_MISSING:
+        if msg.reason in (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING):
             state.note_missing(msg.tile_id)
         if not self.bid_in_auctions or self.robot_name not in msg.bidders:
             return
@@ -263,7 +263,7 @@ class AssemblyNode(Node):
         self.goal_handle = None
         self.server_lost_since = None
         why = "the robot stopped answering" if lost else f"no result within {self.action_timeout:.0f} s"
-        self.on_placement_done(tile_id, False, why)
+        self.on_placement_done(tile_id, False, why, ())
 
     def send_goal(self, tile_id: int) -> None:
         state = self.executor_state
@@ -287,7 +287,7 @@ class AssemblyNode(Node):
             return  # given up on already
         handle = future.result()
         if handle is None or not handle.accepted:
-            self.on_placement_done(tile_id, False, "the robot refused the goal")
+            self.on_placement_done(tile_id, False, "the robot refused the goal", ())
             return
         self.goal_handle = handle
         handle.get_result_async().add_done_callback(lambda f, t=tile_id: self.on_result(t, f))
@@ -302,16 +302,22 @@ class AssemblyNode(Node):
             PlaceTile.Result.SUCCEEDED,
             PlaceTile.Result.ALREADY_PRESENT,
         )
-        self.on_placement_done(tile_id, ok, result.message or f"goal status {response.status}")
+        absent = tuple(result.missing_supports) if result.error_code == PlaceTile.Result.FAILED_PRECONDITION else ()
+        self.on_placement_done(tile_id, ok, result.message or f"goal status {response.status}", absent)
 
-    def on_placement_done(self, tile_id: int, success: bool, reason: str) -> None:
+    def on_placement_done(self, tile_id: int, success: bool, reason: str, absent: tuple[int, ...]) -> None:
         state = self.executor_state
         assert state is not None
         attempts = state.attempts.get(tile_id, 1)
-        outcome = state.finish(tile_id, success)
+        outcome = state.finish(tile_id, success, absent)
         if outcome is Outcome.PLACED:
             self.publish_report(tile_id, PlacementReport.OUTCOME_PLACED, attempts, "")
             self.get_logger().info(f"placed tile {tile_id}")
+        elif outcome is Outcome.BLOCKED:
+            self.publish_report(tile_id, PlacementReport.OUTCOME_SUPPORT_MISSING, attempts, reason, absent)
+            self.get_logger().warn(
+                f"tile {tile_id} waits: support {', '.join(map(str, absent))} is not there ({reason})"
+            )
         elif outcome is Outcome.RETRY:
             self.retry_after = self.now() + self.retry_delay
             self.get_logger().warn(f"placing tile {tile_id} failed ({reason}); retrying in {self.retry_delay:.0f} s")
@@ -321,11 +327,14 @@ class AssemblyNode(Node):
         self.publish_status()
         self.step()
 
-    def publish_report(self, tile_id: int, outcome: int, attempts: int, reason: str) -> None:
+    def publish_report(
+        self, tile_id: int, outcome: int, attempts: int, reason: str, absent: tuple[int, ...] = ()
+    ) -> None:
         state = self.executor_state
         assert state is not None
         report = PlacementReport(
-            robot_name=self.robot_name, tile_id=tile_id, outcome=outcome, attempts=attempts, reason=reason
+            robot_name=self.robot_name, tile_id=tile_id, outcome=outcome, attempts=attempts, reason=reason,
+            missing_supports=list(absent),
         )
         report.header.stamp = self.get_clock().now().to_msg()
         report.header.frame_id = state.structure.frame_id

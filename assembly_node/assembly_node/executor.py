@@ -43,6 +43,7 @@ class Outcome(Enum):
     PLACED = "placed"
     RETRY = "retry"
     GAVE_UP = "gave_up"
+    BLOCKED = "blocked"  # supports claimed placed are not there: keep the tile, wait for them
 
 
 @dataclass
@@ -131,8 +132,13 @@ class PlanExecutor:
         self.in_flight = tile_id
         self.attempts[tile_id] = self.attempts.get(tile_id, 0) + 1
 
-    def finish(self, tile_id: int, success: bool) -> Outcome:
-        """The place action for `tile_id` ended: placed, to be retried, or given up."""
+    def finish(self, tile_id: int, success: bool, missing_supports: Iterable[int] = ()) -> Outcome:
+        """The place action for `tile_id` ended: placed, to be retried, given up, or blocked.
+
+        A placement refused because supports are not physically there is not the robot's fault
+        and not the tile's: the tile stays first in the task, the attempt does not count, and the
+        robot waits until those supports are reported placed again.
+        """
         if tile_id != self.in_flight:
             raise ValueError(f"tile {tile_id} is not the one being placed ({self.in_flight})")
         self.in_flight = 0
@@ -141,6 +147,12 @@ class PlanExecutor:
             self.placed_by_me.append(tile_id)
             self.attempts.pop(tile_id, None)
             return Outcome.PLACED
+        absent = {s for s in missing_supports if s in self.structure.supports[tile_id]}
+        if absent:
+            self.placed -= absent
+            self.attempts[tile_id] = self.attempts.get(tile_id, 1) - 1
+            self.remaining.insert(0, tile_id)
+            return Outcome.BLOCKED
         if self.attempts.get(tile_id, 0) < self.max_attempts:
             self.remaining.insert(0, tile_id)
             return Outcome.RETRY

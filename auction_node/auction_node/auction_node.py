@@ -9,7 +9,8 @@ Beyond the paper: a robot whose heartbeat stops is left out of auctions and its 
 to the others through the planner's `/replan` service (a fresh partition and order of everything
 not yet placed, for the robots still alive), which keeps the team's work balanced and its orders
 consistent with precedence; if the planner does not answer, its tiles are auctioned one by one
-instead. A tile a robot gave up on is auctioned among the others.
+instead. A tile a robot gave up on is auctioned among the others, and a support a robot found
+physically absent when placing on it is missing just as if a scan had said so.
 """
 
 from __future__ import annotations
@@ -26,6 +27,13 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
+
+from auction_node.auction import AuctionBook, Award
+from auction_node.liveness import Liveness
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector
+from tiling_assembly.messages import pose_of, structure_from_msg
+from tiling_assembly.structure import Structure as StructureModel
+from tiling_assembly.structure import StructureError
 from tiling_assembly_msgs.msg import (
     AuctionAcceptance,
     AuctionAnnouncement,
@@ -39,13 +47,6 @@ from tiling_assembly_msgs.msg import (
 )
 from tiling_assembly_msgs.srv import Replan
 
-from auction_node.auction import Auction, AuctionBook, Award
-from auction_node.liveness import Liveness
-from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector
-from tiling_assembly.messages import pose_of, structure_from_msg
-from tiling_assembly.structure import Structure as StructureModel
-from tiling_assembly.structure import StructureError
-
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
@@ -56,6 +57,7 @@ REASONS = {
     AuctionAnnouncement.REASON_MISSING: "missing",
     AuctionAnnouncement.REASON_ROBOT_LOST: "its robot was lost",
     AuctionAnnouncement.REASON_GAVE_UP: "given up",
+    AuctionAnnouncement.REASON_FOUND_MISSING: "missing, found by a robot",
 }
 
 
@@ -81,6 +83,7 @@ class AuctionNode(Node):
         self.accept_timeout = float(self.get_parameter("acceptance_timeout").value)
         self.reopen_delay = float(self.get_parameter("reopen_delay").value)
         self.lost_robot_policy = str(self.get_parameter("lost_robot_policy").value)
+        self.robots_find_missing = bool(self.get_parameter("robots_find_missing").value)
         if self.lost_robot_policy not in ("replan", "auction"):
             raise ValueError(f"lost_robot_policy must be 'replan' or 'auction', got '{self.lost_robot_policy}'")
         if self.book.bid_window <= 0 or self.liveness.timeout <= 0:
@@ -118,6 +121,8 @@ class AuctionNode(Node):
         declare("acceptance_timeout", 2.0, "s of wall-clock time for a winner to accept before re-auctioning.")
         declare("reopen_delay", 5.0, "s (node clock) before an auction nobody bid in is reopened.")
         declare("lost_robot_policy", "replan", "'replan' (planner's /replan service) or 'auction' per tile.")
+        declare("robots_find_missing", True,
+                "A support a robot found absent when placing on it is missing (false: only scans decide).")
 
     # --- helpers ------------------------------------------------------------------------------
     def now(self) -> float:
@@ -172,6 +177,15 @@ class AuctionNode(Node):
             self.detector.unplaced(msg.tile_id)
             self.decide(f"{msg.robot_name} gave up tile {msg.tile_id}: {msg.reason}", error=True)
             self.announce(msg.tile_id, AuctionAnnouncement.REASON_GAVE_UP, exclude=msg.robot_name)
+        elif msg.outcome == PlacementReport.OUTCOME_SUPPORT_MISSING and self.robots_find_missing:
+            for support in msg.missing_supports:
+                if self.detector.found_absent(support, stamp_seconds(msg.header.stamp)):
+                    self.detected_wall[support] = time.time()
+                    self.decide(
+                        f"tile {support} was placed but {msg.robot_name} found it missing "
+                        f"when placing tile {msg.tile_id} on it"
+                    )
+                    self.announce(support, AuctionAnnouncement.REASON_FOUND_MISSING)
 
     def on_tile_states(self, msg: TileStateArray) -> None:
         detected = time.time()
@@ -231,7 +245,8 @@ class AuctionNode(Node):
             bids=list(award.bids), decision=award.decision,
         )
         msg.header.stamp = self.get_clock().now().to_msg()
-        detected = self.detected_wall.pop(award.tile_id, 0.0) if reason == AuctionAnnouncement.REASON_MISSING else 0.0
+        missing = (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING)
+        detected = self.detected_wall.pop(award.tile_id, 0.0) if reason in missing else 0.0
         if detected:
             msg.detection_wall_stamp = Time(sec=int(detected), nanosec=int((detected % 1) * 1e9))
         self.award_pub.publish(msg)

@@ -12,6 +12,9 @@ there). A tile found missing is no longer placed (q_i = 0) until a robot reports
 and its old sensing value is forgotten then, so a stale -1 cannot flag the new tile. A scan taken
 before a tile's placement says nothing about it (scans arrive after some processing time, possibly
 after the report of a placement they did not see).
+
+Beyond the paper, a robot refused a placement because a support is not physically there is a
+second sensor: that support is missing too, without waiting for the VI robot to look.
 """
 
 from __future__ import annotations
@@ -68,6 +71,18 @@ class MismatchDetector:
                 found.append(tile_id)
                 self.unplaced(tile_id)
         return sorted(found)
+
+    def found_absent(self, tile_id: int, at: float = math.inf) -> bool:
+        """A robot found `tile_id` physically absent at time `at` (s); True when that is news.
+
+        Only a tile claimed placed before `at` can be missing; one already found missing (or never
+        placed) is waiting for its replacement, not missing again.
+        """
+        if self.q.get(tile_id, 0) != 1 or at < self.placed_at.get(tile_id, -math.inf):
+            return False
+        self.q_sensed[tile_id] = MISSING
+        self.unplaced(tile_id)
+        return True
 
     def placed_tiles(self) -> list[int]:
         return sorted(t for t, v in self.q.items() if v == 1)

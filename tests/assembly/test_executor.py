@@ -91,6 +91,28 @@ def test_failures_are_retried_then_given_up() -> None:
     assert state.next_step().tile_id == 1
 
 
+def test_absent_supports_block_the_tile_without_using_up_its_attempts() -> None:
+    state = executor([13], attempts=1)
+    state.note_placed(11)
+    for _ in range(3):  # refused again and again: never given up while its support is absent
+        state.start(13)
+        assert state.finish(13, False, missing_supports=[11]) is Outcome.BLOCKED
+        assert state.task() == [13]
+        step = state.next_step()
+        assert step.kind is StepKind.WAIT and step.waiting_for == (11,)
+        state.note_placed(11)  # 11 replaced
+    state.note_placed(11)
+    state.start(13)
+    assert state.finish(13, False) is Outcome.GAVE_UP  # an ordinary failure still counts
+
+
+def test_a_refusal_naming_no_support_of_the_tile_is_an_ordinary_failure() -> None:
+    state = executor([13], attempts=2)
+    state.note_placed(11)
+    state.start(13)
+    assert state.finish(13, False, missing_supports=[5]) is Outcome.RETRY  # 5 does not carry 13
+
+
 def test_award_goes_to_the_front_when_another_robot_waits_for_it() -> None:
     state = executor([6, 9])
     for tile in (1, 2, 3):

@@ -47,6 +47,18 @@ def test_confirmations_need_missing_scans_without_a_present_one_between() -> Non
     assert detector.sensed({4: MISSING}) == [4]
 
 
+def test_a_robot_finding_a_support_absent_makes_it_missing_once() -> None:
+    detector = MismatchDetector(confirmations=2)
+    assert not detector.found_absent(4, at=50.0)  # never claimed placed
+    detector.placed(4, at=100.0)
+    assert not detector.found_absent(4, at=99.0)  # a report from before the placement
+    assert detector.found_absent(4, at=120.0)
+    assert detector.q[4] == 0 and detector.q_sensed[4] == MISSING
+    assert not detector.found_absent(4, at=121.0)  # already waiting for its replacement
+    assert detector.sensed({4: MISSING}, at=122.0) == []  # nor found again by the next scans
+    assert detector.sensed({4: MISSING}, at=123.0) == []
+
+
 def test_liveness() -> None:
     live = Liveness(timeout=1.0)
     live.heard("robot1", 0.0)

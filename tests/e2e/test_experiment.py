@@ -18,7 +18,9 @@ import pytest
 from conftest import REPO, STRUCTURES
 
 
-def run_experiment(report: Path, *args: str, timeout: float = 240.0) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
+def run_experiment(
+    report: Path, *args: str, timeout: float = 240.0
+) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
     command = [
         str(REPO / "install/tiling_sim/lib/tiling_sim/experiment"),
         "--structure", str(STRUCTURES / "paper_14.yaml"), "--report", str(report), "--quiet",
@@ -44,16 +46,29 @@ def _only_trial(data: dict) -> dict:  # type: ignore[type-arg]
 
 
 def test_removed_tile_is_detected_auctioned_and_replaced(experiment) -> None:  # type: ignore[no-untyped-def]
-    result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3")
+    result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3", "--inspection-only")
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
     trial = _only_trial(data)
     assert trial["complete"] and trial["removed"] == 1 and trial["detected"] == 1
+    assert trial["found_by_robot"] == 0  # robots' reports of absent supports are ignored
     (removal,) = trial["removals"]
     replaced = [p for p in trial["placements"] if p["tile"] == removal["tile"] and p["t"] > removal["t"]]
     assert replaced, "the removed tile was never placed again"
     won = [d for d in trial["decisions"] if f"for tile {removal['tile']}:" in d and " wins with " in d]
     assert won and replaced[0]["robot"] in won[0]
     assert "Every trial finished the structure correctly: yes (1/1)" in result.stdout
+
+
+def test_a_robot_finding_a_support_absent_gets_it_replaced_without_inspection(experiment) -> None:  # type: ignore[no-untyped-def]
+    result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3", "--no-inspection")
+    trial = _only_trial(data)
+    assert trial["complete"], result.stdout[-2000:]
+    assert (trial["detected"], trial["found_by_robot"]) == (0, 1)
+    (removal,) = trial["removals"]
+    assert any(f"tile {removal['tile']} was placed but" in d and "found it missing when placing tile" in d
+               for d in trial["decisions"])
+    assert any(p["tile"] == removal["tile"] and p["t"] > removal["found_by_robot_at"] for p in trial["placements"])
+    assert not any("gave up" in d for d in trial["decisions"])  # the blocked tile waited, it was not given up
 
 
 def test_killed_robot_has_its_tiles_finished_by_the_other(experiment) -> None:  # type: ignore[no-untyped-def]
@@ -119,7 +134,8 @@ def test_ctrl_c_stops_the_run_and_leaves_no_process(tmp_path: Path) -> None:
 
 def test_runner_failure_leaves_no_process(experiment) -> None:  # type: ignore[no-untyped-def]
     before = set(_processes_of_run())
-    result, _ = experiment("--trials", "1", "--structure", str(REPO / "tests/data/structures/invalid/floating_tile.yaml"))
+    floating = REPO / "tests/data/structures/invalid/floating_tile.yaml"
+    result, _ = experiment("--trials", "1", "--structure", str(floating))
     assert result.returncode == 2
     assert result.stderr.startswith("error: ") and "floating" in result.stderr and "Traceback" not in result.stderr
     assert [p for run, pids in _processes_of_run().items() if run not in before for p in pids] == []

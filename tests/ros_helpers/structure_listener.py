@@ -6,9 +6,9 @@ import sys
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from tiling_assembly_msgs.msg import Structure
 
 from tiling_assembly.messages import structure_from_msg
+from tiling_assembly_msgs.msg import Structure
 
 
 def main() -> int:

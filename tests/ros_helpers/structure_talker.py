@@ -6,10 +6,10 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from tiling_assembly_msgs.msg import Structure
 
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.msg import Structure
 
 
 def main() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -9,7 +10,7 @@ from conftest import STRUCTURES
 
 from tiling_assembly.structure_file import load_structure
 from tiling_sim.faults import FaultInjector
-from tiling_sim.robot_motion import MotionModel, approach_point, drive_time_to_pose, placement_phases
+from tiling_sim.robot_motion import MotionModel, approach_point, drive_time_to_pose, placement_phases, start_positions
 from tiling_sim.world import PhysicalWorld, PlaceCheck
 
 PAPER = load_structure(STRUCTURES / "paper_14.yaml")
@@ -19,8 +20,10 @@ def test_placement_needs_the_supports_physically_there() -> None:
     world = PhysicalWorld(PAPER)
     check, reason = world.check_placement(4)
     assert check is PlaceCheck.SUPPORT_MISSING and "support 1, 2, 3, 6" in reason
+    assert world.absent_supports(4) == [1, 2, 3, 6]
     for tile in (1, 2, 3, 6):
         world.place(tile)
+    assert world.absent_supports(4) == []
     assert world.check_placement(4)[0] is PlaceCheck.OK
     world.place(4)
     assert world.check_placement(4)[0] is PlaceCheck.ALREADY_PRESENT
@@ -76,3 +79,12 @@ def test_removals_come_due_in_order() -> None:
     faults.removed()
     assert faults.due(30.0) == 0 and faults.due(60.0) == 1
     assert faults.choose([]) is None
+
+
+def test_automatic_start_positions_lie_outside_the_structure_and_apart() -> None:
+    centres = [(float(t.position[0]), float(t.position[1])) for t in PAPER.tiles.values()]
+    starts = start_positions(centres, 4, clearance=0.6)
+    assert len(starts) == 4
+    for x, y in starts:
+        assert min(math.hypot(x - cx, y - cy) for cx, cy in centres) >= 0.6 - 1e-9
+    assert min(math.dist(a, b) for a, b in itertools.combinations(starts, 2)) > 0.5

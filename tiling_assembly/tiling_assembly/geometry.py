@@ -110,7 +110,7 @@ class TileShape:
     faces: tuple[Face, ...]
     pieces: tuple[tuple[int, ...], ...]  # convex pieces as vertex-index sets (or subsets)
     piece_vertices: tuple[Array, ...]  # the convex pieces' corners, (K, 3) each
-    piece_axes: tuple["PieceAxes", ...]  # separating-axis candidates of each piece
+    piece_axes: tuple[PieceAxes, ...]  # separating-axis candidates of each piece
     polygon: Array | None = None  # prism only: the counter-clockwise base polygon
     height: float = 0.0  # prism only
 
@@ -310,7 +310,7 @@ class PlacedTile:
     def face_offsets(self) -> Array:
         """(F,) plane offsets d so that a point p on face k satisfies normal_k . p = d_k."""
         return np.array(
-            [n @ self.vertices[f.loop[0]] for n, f in zip(self.face_normals, self.shape.faces)]
+            [n @ self.vertices[f.loop[0]] for n, f in zip(self.face_normals, self.shape.faces, strict=True)]
         )
 
     def face_corners(self, k: int) -> Array:

@@ -10,12 +10,12 @@ from __future__ import annotations
 from typing import Any
 
 from geometry_msgs.msg import Point, Pose
-from tiling_assembly_msgs.msg import PartsCache, SupportRelation, Tile, TileType
-from tiling_assembly_msgs.msg import Structure as StructureMsg
 
 from tiling_assembly.geometry import PlacedTile, rotation_from_quaternion, rpy_from_rotation
 from tiling_assembly.structure import Structure, StructureError
 from tiling_assembly.structure_file import parse_structure
+from tiling_assembly_msgs.msg import PartsCache, SupportRelation, Tile, TileType
+from tiling_assembly_msgs.msg import Structure as StructureMsg
 
 
 def pose_of(tile: PlacedTile) -> Pose:

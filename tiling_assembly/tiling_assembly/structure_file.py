@@ -152,7 +152,8 @@ class _Checker:
         type_name = spec["type"]
         if not isinstance(type_name, str) or type_name not in types:
             known = ", ".join(sorted(types)) or "none"
-            raise self.fail("unknown-type", f"{where} has type {_show(type_name)}, not one of the tile types ({known})", ids)
+            why = f"{where} has type {_show(type_name)}, not one of the tile types ({known})"
+            raise self.fail("unknown-type", why, ids)
         position = self.vector(f"{where} position", spec["position"], 3, ids)
         if "yaw" in spec and "rpy" in spec:
             raise self.fail("bad-value", f"{where} gives both 'yaw' and 'rpy'; give one", ids)
@@ -194,7 +195,8 @@ def parse_structure(
     """Validate a parsed YAML document and build the Structure (see the module docstring)."""
     check = _Checker(source)
     if not isinstance(document, Mapping):
-        raise check.fail("bad-value", f"the file must hold a mapping with 'tile_types' and 'tiles', got {_kind(document)}")
+        why = f"the file must hold a mapping with 'tile_types' and 'tiles', got {_kind(document)}"
+        raise check.fail("bad-value", why)
     top = check.keys("the file", document, TOP_KEYS)
     for key in ("tile_types", "tiles"):
         if key not in top:
@@ -264,7 +266,7 @@ def load_structure(path: str | Path, tolerances: support.Tolerances = support.To
     except OSError as error:
         raise StructureError(source, "file", f"cannot read the file: {error.strerror or error}") from None
     try:
-        document = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+        document = yaml.load(text, Loader=_StrictLoader)
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None) or getattr(error, "context_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""

@@ -119,7 +119,7 @@ def derive_supports(
         cycle = nx.find_cycle(graph)
     if cycle:
         ids = [u for u, _ in cycle]
-        chain = " -> ".join(str(u) for u in ids + [ids[0]])
+        chain = " -> ".join(str(u) for u in [*ids, ids[0]])
         _fail(source, "support-cycle", [(ids, f"the supports form a cycle: {chain}")])
 
     return supports, [(c.a, c.b) for c in found]

@@ -19,13 +19,13 @@ import os
 import random
 import shutil
 import signal
-import statistics
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import rclpy
+import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from rclpy.executors import SingleThreadedExecutor
 
@@ -55,6 +55,7 @@ class ExperimentConfig:
     kill_robot: str = ""  # robot to kill mid-run (tests and demonstrations)
     kill_after_placements: int = 3
     silent_robot: str = ""  # robot that never bids (tests)
+    robots_find_missing: bool = True  # False: only inspection finds missing tiles (the paper)
     wall_limit: float = 0.0  # s per trial; 0: derived from the structure
     quiet: bool = False
     inspection: bool = True  # run the VI robot's nodes (inspection and exploration)
@@ -127,6 +128,18 @@ class Experiment:
         path = self.config.config_dir / f"{package}.yaml"
         return ["--params-file", str(path)] if path.exists() else []
 
+    def start_positions_override(self) -> list[str]:
+        """Robot start positions around the structure when the parameter file's do not fit the team."""
+        path = self.config.config_dir / "tiling_sim.yaml"
+        try:
+            document = yaml.safe_load(path.read_text()) or {}
+            starts = document["/**"]["ros__parameters"]["robot_start_xy"]
+        except (OSError, yaml.YAMLError, KeyError, TypeError):
+            starts = []
+        if isinstance(starts, list) and len(starts) == 2 * self.config.robots:
+            return []
+        return ["-p", "robot_start_xy:=[0.0]"]
+
     def node_commands(self, setup: TrialSetup) -> dict[str, list[str]]:
         c, exe = self.config, self.executables
         structure = f"structure_file:={c.structure_file}"
@@ -139,10 +152,14 @@ class Experiment:
                           "-p", robots, "-p", f"seed:={setup.seed}", "-p", f"removals:={setup.removals}",
                           "-p", f"removal_window_start:={window[0]:.1f}", "-p", f"removal_window_end:={window[1]:.1f}",
                           "-p", f"real_time_factor:={c.real_time_factor}", "-p", "wait_for_start:=true",
-                          "-p", f"drop_probability:={c.drop_probability if setup.faults else 0.0}"],
+                          "-p", f"drop_probability:={c.drop_probability if setup.faults else 0.0}",
+                          *self.start_positions_override()],
             "planner_node": [exe["planner_node"], "--ros-args", *self.params("planner_node"), "-p", structure,
                              "-p", robots, *sim_time],
-            "auction_node": [exe["auction_node"], "--ros-args", *self.params("auction_node"), *sim_time],
+            "auction_node": [
+                exe["auction_node"], "--ros-args", *self.params("auction_node"), *sim_time,
+                *([] if c.robots_find_missing else ["-p", "robots_find_missing:=false"]),
+            ],
         }
         if c.inspection:
             commands["vi_node"] = [exe["vi_node"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
@@ -243,7 +260,8 @@ def trial_summary(record: TrialRecord) -> str:
         return "did not finish in time"
     stats = detection_stats(record)
     return (f"complete in {record.makespan():.0f} s simulated; removed {stats.removed}, "
-            f"detected {stats.detected}, auctions {len(record.awards)}")
+            f"detected {stats.detected} by inspection + {stats.found_by_robot} by robots, "
+            f"auctions {len(record.awards)}")
 
 
 def total_stats(records: list[TrialRecord]) -> DetectionStats:
@@ -268,6 +286,8 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser.add_argument("--kill-robot", default="", help="kill this robot's process after a few placements")
     parser.add_argument("--silent-robot", default="", help="this robot never bids (robustness check)")
     parser.add_argument("--no-inspection", action="store_true", help="build without the VI robot")
+    parser.add_argument("--inspection-only", action="store_true",
+                        help="only scans find missing tiles, as in the paper (robots do not report absent supports)")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
     args = parser.parse_args(argv)
     structure = Path(args.structure)
@@ -279,11 +299,12 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
         report_dir=Path(args.report or f"reports/{structure.stem}"), config_dir=Path(args.config).resolve(),
         baseline=not args.no_baseline, drop_probability=args.drop_probability, kill_robot=args.kill_robot,
         silent_robot=args.silent_robot, quiet=args.quiet, inspection=not args.no_inspection,
+        robots_find_missing=not args.inspection_only,
     )
 
 
 def main(argv: list[str] | None = None) -> int:
-    from tiling_sim import report  # noqa: PLC0415 - Matplotlib only when reporting
+    from tiling_sim import report
 
     config = parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
@@ -294,6 +315,9 @@ def main(argv: list[str] | None = None) -> int:
         experiment = Experiment(config)
         config.report_dir.mkdir(parents=True, exist_ok=True)
         print(report.header(config, experiment.structure), flush=True)
+        if not config.quiet:
+            print(f"ROS_DOMAIN_ID={domain} (private, this host only); watch with: ROS_DOMAIN_ID={domain} "
+                  "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ros2 topic echo /auction/decisions", flush=True)
         result = experiment.run()
         print(report.summary_text(result), flush=True)
         path = report.write(result)

@@ -13,6 +13,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Empty, String
+
 from tiling_assembly_msgs.msg import (
     AssemblyPlan,
     AuctionAcceptance,
@@ -22,7 +23,6 @@ from tiling_assembly_msgs.msg import (
     TileState,
     TileStateArray,
 )
-
 from tiling_sim.trial_record import (
     MISPLACED,
     MISSING,

@@ -64,7 +64,7 @@ class ProcessGroup:
         if self.log_dir is not None:
             self.log_dir.mkdir(parents=True, exist_ok=True)
             log_path = self.log_dir / f"{name}.log"
-            log_file = open(log_path, "wb")  # noqa: SIM115 - closed in stop()
+            log_file = open(log_path, "wb")
         popen = subprocess.Popen(
             list(argv),
             stdin=subprocess.DEVNULL,
@@ -72,7 +72,7 @@ class ProcessGroup:
             stderr=subprocess.STDOUT if log_file else subprocess.DEVNULL,
             env=dict(env) if env is not None else None,
             start_new_session=True,
-            preexec_fn=_child_setup(nice),  # noqa: PLW1509 - only prctl and nice
+            preexec_fn=_child_setup(nice),
         )
         process = ManagedProcess(name, popen, log_path, log_file)
         self.processes[name] = process

@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+import matplotlib.pyplot as plt
+from matplotlib.patches import Patch
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-from tiling_assembly.structure import Structure  # noqa: E402
-from tiling_sim.trial_record import (  # noqa: E402
+from tiling_assembly.structure import Structure
+from tiling_sim.trial_record import (
     MISSING,
     OCCLUDED,
     PRESENT,
@@ -81,13 +81,15 @@ def table2(record: TrialRecord, robots: list[str]) -> list[str]:
 
 
 def detection_table(result: ExperimentResult) -> list[str]:
-    from tiling_sim.experiment import total_stats  # noqa: PLC0415
+    from tiling_sim.experiment import total_stats
 
     stats = total_stats(result.fault_trials())
     rate = stats.present_judged_missing / stats.present_judgements if stats.present_judgements else 0.0
     rows = [
         ["removed tiles", str(stats.removed), str(PAPER["removed"])],
-        ["detected as missing", str(stats.detected), str(PAPER["detected"])],
+        ["detected as missing", str(stats.detected + stats.found_by_robot), str(PAPER["detected"])],
+        ["  by inspection (the VI robot's scans)", str(stats.detected), str(PAPER["detected"])],
+        ["  by a robot placing a tile on it, first", str(stats.found_by_robot), "-"],
         ["undetermined (never detected)", str(stats.undetermined), str(PAPER["undetermined"])],
         ["false positives: missing tile reported present", str(stats.missing_called_present),
          str(PAPER["missing_called_present"])],
@@ -96,7 +98,8 @@ def detection_table(result: ExperimentResult) -> list[str]:
         ["present tiles judged missing, per scan", f"{rate:.2%}", "-"],
     ]
     if stats.detection_delays:
-        rows.append(["median detection delay (simulated s)", f"{statistics.median(stats.detection_delays):.1f}", "-"])
+        delay = statistics.median(stats.detection_delays)
+        rows.append(["median removal -> detection (simulated s)", f"{delay:.1f}", "-"])
     for type_name, (removed, detected) in sorted(stats.by_type.items()):
         rows.append([f"  {_pretty(type_name)}: detected / removed", f"{detected} / {removed}", "-"])
     return _table(["", "this run", "paper"], rows)
@@ -120,7 +123,8 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
     if latencies:
         lines.append(
             f"Missing tile detected -> award received by the winner (wall clock, over DDS): median "
-            f"{statistics.median(latencies) * 1000:.1f} ms, max {max(latencies) * 1000:.1f} ms over {len(latencies)} awards"
+            f"{statistics.median(latencies) * 1000:.1f} ms, max {max(latencies) * 1000:.1f} ms "
+            f"over {len(latencies)} awards"
         )
     return lines
 
@@ -136,14 +140,17 @@ def summary_text(result: ExperimentResult) -> str:
     lines = [""]
     first_plan = next((p for r in result.records for p in r.plans if p.revision == 0), None)
     if first_plan is not None:
-        lines += [f"Table 1. Initial allocation ({first_plan.method} planner)", *table1(result.structure, first_plan.tasks), ""]
+        title = f"Table 1. Initial allocation ({first_plan.method} planner)"
+        lines += [title, *table1(result.structure, first_plan.tasks), ""]
     trial = chosen_trial(result)
     if trial is not None:
-        lines += [f"Table 2. Allocation after detection of missing tiles (trial {trial.trial})", *table2(trial, robots), ""]
+        title = f"Table 2. Allocation after detection of missing tiles (trial {trial.trial})"
+        lines += [title, *table2(trial, robots), ""]
     lines += ["Detection statistics over the trials with faults", *detection_table(result), ""]
     finished = [r for r in result.fault_trials() if r.complete()]
     verdict = "yes" if len(finished) == len(result.fault_trials()) else "NO"
-    lines.append(f"Every trial finished the structure correctly: {verdict} ({len(finished)}/{len(result.fault_trials())})")
+    total = len(result.fault_trials())
+    lines.append(f"Every trial finished the structure correctly: {verdict} ({len(finished)}/{total})")
     for record in result.records:
         if not record.complete():
             lines.append(f"  trial {record.trial}: {record.failure or 'did not finish in time'}")
@@ -251,14 +258,16 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
         trials.append({
             "trial": record.trial, "seed": record.seed, "complete": record.complete(),
             "failure": record.failure, "timed_out": record.timed_out, "makespan": record.makespan(),
-            "removed": stats.removed, "detected": stats.detected, "undetermined": stats.undetermined,
+            "removed": stats.removed, "detected": stats.detected, "found_by_robot": stats.found_by_robot,
+            "undetermined": stats.undetermined,
             "missing_called_present": stats.missing_called_present,
             "present_called_missing": stats.present_called_missing,
             "auctions": len(record.awards), "award_latencies": record.award_latencies,
             "plans": [{"revision": p.revision, "tasks": p.tasks} for p in record.plans],
             "placements": [{"t": e.t, "tile": e.tile, "robot": e.robot} for e in record.events if e.kind == "placed"],
             "removals": [
-                {"t": o.removed_at, "tile": o.tile, "detected_at": o.detected_at, "back_at": o.back_at,
+                {"t": o.removed_at, "tile": o.tile, "detected_at": o.detected_at,
+                 "found_by_robot_at": o.found_by_robot_at, "back_at": o.back_at,
                  "scans_calling_it_present": o.called_present}
                 for o in removal_outcomes(record)
             ],

@@ -69,3 +69,16 @@ def drive_time_to_pose(
     turn1 = abs(math.remainder(heading - start[2], math.tau))
     turn2 = abs(math.remainder(goal[2] - heading, math.tau))
     return (turn1 + turn2) / model.turn_speed + _drive_time(model, start[:2], goal[:2])
+
+
+def start_positions(tile_centres: list[Point2], count: int, clearance: float = 0.6) -> list[Point2]:
+    """`count` robot start positions spread evenly on a circle around the structure, `clearance` (m)
+    outside its outermost tile centre, so no robot starts inside the structure."""
+    cx = sum(x for x, _ in tile_centres) / len(tile_centres)
+    cy = sum(y for _, y in tile_centres) / len(tile_centres)
+    radius = max(math.hypot(x - cx, y - cy) for x, y in tile_centres) + clearance
+    return [
+        (cx + radius * math.cos(-math.pi / 2 + 2 * math.pi * k / count),
+         cy + radius * math.sin(-math.pi / 2 + 2 * math.pi * k / count))
+        for k in range(count)
+    ]

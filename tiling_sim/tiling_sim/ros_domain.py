@@ -21,7 +21,7 @@ def claim_domain_id(first: int = FIRST, last: int = LAST) -> tuple[int, IO[str]]
     start = os.getpid() % span
     for k in range(span):
         domain = first + (start + k) % span
-        handle = open(f"/tmp/tiling_assembly_ros_domain_{domain}.lock", "w")  # noqa: SIM115
+        handle = open(f"/tmp/tiling_assembly_ros_domain_{domain}.lock", "w")
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:

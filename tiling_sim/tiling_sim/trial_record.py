@@ -13,7 +13,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 PRESENT, MISSING, OCCLUDED, MISPLACED = "present", "missing", "occluded", "misplaced"
-REASON_MISSING = 0
+REASON_MISSING = 0  # AuctionAnnouncement reasons: found missing by inspection
+REASON_FOUND_MISSING = 3  # found missing by a robot placing a tile on it
 
 
 @dataclass(frozen=True)
@@ -118,7 +119,8 @@ class TrialRecord:
 class RemovalOutcome:
     tile: int
     removed_at: float
-    detected_at: float | None  # when it was auctioned as missing
+    detected_at: float | None  # when inspection found it missing (its auction opened)
+    found_by_robot_at: float | None  # when a robot found it missing first (placing on it)
     called_present: int  # scans that saw it and called it present while it was away
     back_at: float | None  # when it was physically in place again
 
@@ -126,18 +128,19 @@ class RemovalOutcome:
 @dataclass
 class DetectionStats:
     removed: int = 0
-    detected: int = 0
-    undetermined: int = 0
+    detected: int = 0  # by inspection
+    found_by_robot: int = 0  # by a robot placing a tile on it, before inspection did
+    undetermined: int = 0  # by neither
     missing_called_present: int = 0  # removals some scan called present (the paper's false positives)
     present_called_missing: int = 0  # auctions for tiles that were there (the paper's false negatives)
     present_judgements: int = 0  # (present tile, scan) pairs judged
     present_judged_missing: int = 0  # of those, called missing
-    detection_delays: list[float] = field(default_factory=list)  # s of simulated time
-    by_type: dict[str, list[int]] = field(default_factory=dict)  # type -> [removed, detected]
+    detection_delays: list[float] = field(default_factory=list)  # s of simulated time to the first finding
+    by_type: dict[str, list[int]] = field(default_factory=dict)  # type -> [removed, found by anyone]
 
     def add(self, other: DetectionStats) -> None:
-        for name in ("removed", "detected", "undetermined", "missing_called_present", "present_called_missing",
-                     "present_judgements", "present_judged_missing"):
+        for name in ("removed", "detected", "found_by_robot", "undetermined", "missing_called_present",
+                     "present_called_missing", "present_judgements", "present_judged_missing"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.detection_delays += other.detection_delays
         for type_name, (removed, detected) in other.by_type.items():
@@ -146,22 +149,25 @@ class DetectionStats:
             mine[1] += detected
 
 
+def _first_announcement(record: TrialRecord, tile: int, reason: int, start: float, stop: float) -> float | None:
+    return next(
+        (a.t for a in record.announcements if a.tile == tile and a.reason == reason and start <= a.t <= stop), None
+    )
+
+
 def removal_outcomes(record: TrialRecord) -> list[RemovalOutcome]:
     intervals = record.presence_intervals()
     outcomes = []
     for removal in record.removals():
         back = next((a for a, _ in intervals.get(removal.tile, []) if a > removal.t), None)
         end = back if back is not None else float("inf")
-        detected = next(
-            (a.t for a in record.announcements
-             if a.tile == removal.tile and a.reason == REASON_MISSING and removal.t <= a.t <= end),
-            None,
-        )
+        detected = _first_announcement(record, removal.tile, REASON_MISSING, removal.t, end)
+        found = _first_announcement(record, removal.tile, REASON_FOUND_MISSING, removal.t, end)
         called_present = sum(
             1 for s in record.scans
             if removal.t < s.t < end and removal.tile in s.fresh and s.states.get(removal.tile) == PRESENT
         )
-        outcomes.append(RemovalOutcome(removal.tile, removal.t, detected, called_present, back))
+        outcomes.append(RemovalOutcome(removal.tile, removal.t, detected, found, called_present, back))
     return outcomes
 
 
@@ -172,10 +178,14 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
         stats.removed += 1
         per_type = stats.by_type.setdefault(record.tile_types.get(outcome.tile, "?"), [0, 0])
         per_type[0] += 1
+        found = [t for t in (outcome.detected_at, outcome.found_by_robot_at) if t is not None]
+        if found:
+            per_type[1] += 1
+            stats.detection_delays.append(min(found) - outcome.removed_at)
         if outcome.detected_at is not None:
             stats.detected += 1
-            per_type[1] += 1
-            stats.detection_delays.append(outcome.detected_at - outcome.removed_at)
+        elif outcome.found_by_robot_at is not None:
+            stats.found_by_robot += 1
         else:
             stats.undetermined += 1
         if outcome.called_present:

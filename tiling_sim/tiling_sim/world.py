@@ -32,11 +32,15 @@ class PhysicalWorld:
             return PlaceCheck.UNKNOWN_TILE, f"tile {tile_id} is not part of {self.structure.name}"
         if tile_id in self.present:
             return PlaceCheck.ALREADY_PRESENT, f"tile {tile_id} is already in place"
-        absent = [s for s in self.structure.supports[tile_id] if s not in self.present]
+        absent = self.absent_supports(tile_id)
         if absent:
             names = ", ".join(str(s) for s in absent)
             return PlaceCheck.SUPPORT_MISSING, f"tile {tile_id} cannot be placed: support {names} is not there"
         return PlaceCheck.OK, ""
+
+    def absent_supports(self, tile_id: int) -> list[int]:
+        """The supports of `tile_id` that are not physically there."""
+        return sorted(s for s in self.structure.supports.get(tile_id, ()) if s not in self.present)
 
     def place(self, tile_id: int) -> None:
         check, reason = self.check_placement(tile_id)

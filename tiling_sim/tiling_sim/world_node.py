@@ -37,7 +37,6 @@ from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Empty, String
-from tiling_assembly_msgs.action import NavigateTo, PlaceTile
 
 from tiling_assembly.geometry import (
     quaternion_from_rotation,
@@ -46,9 +45,10 @@ from tiling_assembly.geometry import (
 )
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.action import NavigateTo, PlaceTile
 from tiling_sim.faults import FaultInjector
 from tiling_sim.kinect import ClutterBox, KinectScene, KinectSimulator, PinholeIntrinsics, camera_pose
-from tiling_sim.robot_motion import MotionModel, drive_time_to_pose, placement_phases
+from tiling_sim.robot_motion import MotionModel, drive_time_to_pose, placement_phases, start_positions
 from tiling_sim.world import PhysicalWorld, PlaceCheck
 from vi_node.point_cloud import cloud_bytes, cloud_fields
 
@@ -91,12 +91,12 @@ class SimWorld(Node):
         if not self.robots:
             raise ValueError("robot_names is empty: the world needs at least one assembly robot")
         starts = list(p("robot_start_xy").value)
-        if starts and len(starts) != 2 * len(self.robots):
+        if len(starts) < 2:  # automatic
+            centres = [(tile.position[0], tile.position[1]) for tile in self.structure.tiles.values()]
+            starts = [c for xy in start_positions(centres, len(self.robots)) for c in xy]
+        if len(starts) != 2 * len(self.robots):
             raise ValueError(f"robot_start_xy needs 2 numbers per robot ({len(self.robots)}), got {len(starts)}")
-        self.positions = {
-            r: (starts[2 * k], starts[2 * k + 1]) if starts else (0.8 * math.cos(k), 0.8 * math.sin(k))
-            for k, r in enumerate(self.robots)
-        }
+        self.positions = {r: (starts[2 * k], starts[2 * k + 1]) for k, r in enumerate(self.robots)}
         vi = list(p("vi_start_pose").value)
         self.vi_pose = (vi[0], vi[1], vi[2])
         self.vi_moving = False
@@ -166,7 +166,8 @@ class SimWorld(Node):
 
         declare("structure_file", "", "Structure YAML being built (required).")
         declare("robot_names", ["robot1", "robot2"], "Simulated assembly robots (one place_tile server each).")
-        declare("robot_start_xy", [0.0], "x1, y1, x2, y2, ... start positions of the robots in map (m).")
+        declare("robot_start_xy", [0.0], "x1, y1, x2, y2, ... start positions of the robots in map (m); "
+                "fewer than 2 numbers: spread on a circle around the structure.")
         declare("vi_start_pose", [1.0, 0.0, math.pi], "x, y, yaw of the VI robot's base at the start.")
         declare("real_time_factor", 20.0, "How much faster than the wall clock simulated time runs.")
         declare("clock_step", 0.005, "s of wall-clock time between two /clock messages.")
@@ -314,6 +315,7 @@ class SimWorld(Node):
                         check, reason = self.world.check_placement(goal.tile_id)
                         if check is PlaceCheck.OK:
                             self.world.place(goal.tile_id)
+                        absent = self.world.absent_supports(goal.tile_id)
                     if check is PlaceCheck.ALREADY_PRESENT:
                         self.event("already_present", tile=goal.tile_id, robot=robot)
                         result.error_code, result.message = PlaceTile.Result.ALREADY_PRESENT, reason
@@ -323,6 +325,7 @@ class SimWorld(Node):
                         self.event("refused", tile=goal.tile_id, robot=robot, reason=reason)
                         result.error_code = PlaceTile.Result.FAILED_PRECONDITION
                         result.message = reason
+                        result.missing_supports = absent
                         handle.abort()
                         return result
                     self.event("placed", tile=goal.tile_id, robot=robot)
@@ -402,7 +405,7 @@ class SimWorld(Node):
             msg.fields = [PointField(name=n, offset=o, datatype=d, count=c) for n, o, d, c in cloud_fields()]
             msg.data = cloud_bytes(cloud)
             self.cloud_pub.publish(msg)
-        except Exception as error:  # noqa: BLE001 - a failed scan must not stop the world
+        except Exception as error:
             self.get_logger().error(f"Kinect simulation failed: {error}")
         finally:
             self.scan_pending = False

@@ -21,14 +21,15 @@ from rclpy.action import ActionClient
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from tiling_assembly_msgs.action import NavigateTo
-from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, Structure, TileState, TileStateArray
 
 from tiling_assembly.geometry import quaternion_from_rotation, rotation_from_rpy
 from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.action import NavigateTo
+from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, Structure, TileState, TileStateArray
 from vi_node.camera_model import PinholeCamera
+from vi_node.evidence import EvidenceSettings
 from vi_node.exploration import (
     MISSING,
     OCCLUDED,
@@ -38,7 +39,6 @@ from vi_node.exploration import (
     PriorityWeights,
     ring_viewpoints,
 )
-from vi_node.evidence import EvidenceSettings
 from vi_node.pose_prior import CameraMount, OverheadPose
 from vi_node.raycast import VirtualScene
 from vi_node.viewpoint import rank_viewpoints

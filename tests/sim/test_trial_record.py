@@ -1,0 +1,52 @@
+"""The experiment's detection statistics against the world's truth (ROS-free)."""
+
+from __future__ import annotations
+
+from tiling_sim.trial_record import (
+    REASON_FOUND_MISSING,
+    REASON_MISSING,
+    Announcement,
+    Scan,
+    TrialRecord,
+    WorldEvent,
+    detection_stats,
+    false_missing_calls,
+)
+
+
+def record() -> TrialRecord:
+    types = {6: "trapezoid", 7: "trapezoid", 8: "square", 9: "square"}
+    r = TrialRecord(trial=1, seed=1, removals_planned=3, tile_types=types)
+    r.events = [WorldEvent(10.0, "placed", t) for t in (6, 7, 8, 9)] + [
+        WorldEvent(50.0, "removed", 6),  # found by a robot at 60
+        WorldEvent(55.0, "removed", 7),  # found by inspection at 70, back at 100
+        WorldEvent(80.0, "removed", 8),  # never found
+        WorldEvent(100.0, "placed", 7),
+    ]
+    r.announcements = [
+        Announcement(60.0, 1, 6, REASON_FOUND_MISSING),
+        Announcement(70.0, 2, 7, REASON_MISSING),
+        Announcement(90.0, 3, 9, REASON_MISSING),  # 9 was there all along: a false call
+        Announcement(120.0, 4, 7, REASON_MISSING),  # after 7 came back: another false call
+    ]
+    r.scans = [
+        Scan(56.0, {7: "present", 9: "present"}, fresh=frozenset({7, 9})),  # 7 called present while away
+        Scan(57.0, {7: "present", 9: "missing"}, fresh=frozenset()),  # repeats older views: not counted
+        Scan(58.0, {9: "missing"}, fresh=frozenset({9})),
+    ]
+    return r
+
+
+def test_every_removal_is_detected_found_by_a_robot_or_undetermined() -> None:
+    stats = detection_stats(record())
+    assert (stats.removed, stats.detected, stats.found_by_robot, stats.undetermined) == (3, 1, 1, 1)
+    assert stats.detection_delays == [10.0, 15.0]  # to the first finding, by anyone
+    assert stats.by_type == {"trapezoid": [2, 2], "square": [1, 0]}
+
+
+def test_false_calls_count_fresh_judgements_and_auctions_for_tiles_in_place() -> None:
+    stats = detection_stats(record())
+    assert stats.missing_called_present == 1
+    assert stats.present_called_missing == 2
+    assert (stats.present_judgements, stats.present_judged_missing) == (2, 1)
+    assert false_missing_calls(record()) == [{"t": 90.0, "tile": 9}, {"t": 120.0, "tile": 7}]
