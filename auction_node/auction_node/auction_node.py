@@ -30,7 +30,7 @@ from std_msgs.msg import String
 
 from auction_node.auction import AuctionBook, Award
 from auction_node.liveness import Liveness
-from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, RepeatFilter
 from tiling_assembly.messages import pose_of, structure_from_msg
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
@@ -77,7 +77,10 @@ class AuctionNode(Node):
     def __init__(self) -> None:
         super().__init__("auction_node")
         self._declare_parameters()
-        self.detector = MismatchDetector(confirmations=int(self.get_parameter("confirmations").value))
+        self.detector = MismatchDetector(
+            confirmations=int(self.get_parameter("confirmations").value),
+            min_view_change=float(self.get_parameter("confirmation_view_change").value),
+        )
         self.book = AuctionBook(bid_window=float(self.get_parameter("bid_window").value))
         self.liveness = Liveness(timeout=float(self.get_parameter("liveness_timeout").value))
         self.accept_timeout = float(self.get_parameter("acceptance_timeout").value)
@@ -88,7 +91,10 @@ class AuctionNode(Node):
             raise ValueError(f"lost_robot_policy must be 'replan' or 'auction', got '{self.lost_robot_policy}'")
         if self.book.bid_window <= 0 or self.liveness.timeout <= 0:
             raise ValueError("bid_window and liveness_timeout must be positive")
+        if self.detector.confirmations < 1 or self.detector.min_view_change < 0:
+            raise ValueError("confirmations must be at least 1 and confirmation_view_change not negative")
 
+        self.repeats = RepeatFilter()
         self.structure: StructureModel | None = None
         self.status: dict[str, RobotStatus] = {}
         self.excluded: dict[int, str] = {}  # auction id -> robot left out (it gave the tile up)
@@ -116,6 +122,8 @@ class AuctionNode(Node):
             self.declare_parameter(name, default, ParameterDescriptor(description=description))
 
         declare("confirmations", 2, "Scans that must call a placed tile missing, none present between (paper: 1).")
+        declare("confirmation_view_change", 0.15,
+                "m between the camera positions of two scans confirming a missing tile (0: any scans).")
         declare("bid_window", 2.0, "s (node clock) from an announcement to its deadline.")
         declare("liveness_timeout", 1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
         declare("acceptance_timeout", 2.0, "s of wall-clock time for a winner to accept before re-auctioning.")
@@ -189,8 +197,11 @@ class AuctionNode(Node):
 
     def on_tile_states(self, msg: TileStateArray) -> None:
         detected = time.time()
-        sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states}
-        for tile_id in self.detector.sensed(sensing, stamp_seconds(msg.header.stamp)):
+        evidence = {s.tile_id: (s.scan_count, s.physical_support, s.see_through_support) for s in msg.states}
+        fresh = self.repeats.fresh(evidence)
+        sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states if s.tile_id in fresh}
+        view = (msg.camera_pose.position.x, msg.camera_pose.position.y)
+        for tile_id in self.detector.sensed(sensing, stamp_seconds(msg.header.stamp), view):
             self.detected_wall[tile_id] = detected
             self.decide(f"tile {tile_id} was placed but the scan says missing (q * q^s = -1)")
             self.announce(tile_id, AuctionAnnouncement.REASON_MISSING)

@@ -8,10 +8,12 @@ claims to have placed is determined to be missing."
 
 `confirmations` > 1 asks for that many missing observations, with no present one between them,
 first (the paper acts on one: a single wrong scan then sends a robot to re-place a tile that is
-there). A tile found missing is no longer placed (q_i = 0) until a robot reports it placed again,
-and its old sensing value is forgotten then, so a stale -1 cannot flag the new tile. A scan taken
-before a tile's placement says nothing about it (scans arrive after some processing time, possibly
-after the report of a placement they did not see).
+there), taken from camera positions at least `min_view_change` apart: scans from one standpoint
+share their errors (a repetitive structure can be aligned one tile pitch off, and every scan
+from there then sees through a whole row). A tile found missing is no longer placed (q_i = 0)
+until a robot reports it placed again, and its old sensing value is forgotten then, so a stale -1
+cannot flag the new tile. A scan taken before a tile's placement says nothing about it (scans
+arrive after some processing time, possibly after the report of a placement they did not see).
 
 Beyond the paper, a robot refused a placement because a support is not physically there is a
 second sensor: that support is missing too, without waiting for the VI robot to look.
@@ -23,6 +25,8 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
+View = tuple[float, float]  # x, y (m) of the camera in the structure's frame
+
 PRESENT = 1
 UNDETERMINED = 0
 MISSING = -1
@@ -33,9 +37,10 @@ class MismatchDetector:
     """The vectors q and q^s over tile ids, and the rule q_i * q^s_i = -1."""
 
     confirmations: int = 1
+    min_view_change: float = 0.0  # m between the camera positions of two confirming scans
     q: dict[int, int] = field(default_factory=dict)
     q_sensed: dict[int, int] = field(default_factory=dict)
-    missing_streak: dict[int, int] = field(default_factory=dict)
+    missing_streak: dict[int, list[View | None]] = field(default_factory=dict)  # views that called it missing
     placed_at: dict[int, float] = field(default_factory=dict)  # s, time of the latest placement
 
     def placed(self, tile_id: int, at: float = -math.inf) -> None:
@@ -50,8 +55,9 @@ class MismatchDetector:
         self.q[tile_id] = 0
         self.missing_streak.pop(tile_id, None)
 
-    def sensed(self, states: Mapping[int, int], at: float = math.inf) -> list[int]:
-        """Take the sensing vector of a scan taken at `at` (tile id -> 1, 0 or -1).
+    def sensed(self, states: Mapping[int, int], at: float = math.inf, view: View | None = None) -> list[int]:
+        """Take the sensing vector of a scan taken at `at` from camera position `view` (tile id -> 1,
+        0 or -1).
 
         Returns the tiles now missing.
         """
@@ -66,11 +72,18 @@ class MismatchDetector:
                 continue
             if self.q.get(tile_id, 0) * value != -1:
                 continue
-            self.missing_streak[tile_id] = self.missing_streak.get(tile_id, 0) + 1
-            if self.missing_streak[tile_id] >= self.confirmations:
+            views = self.missing_streak.setdefault(tile_id, [])
+            if self._new_view(views, view):
+                views.append(view)
+            if len(views) >= self.confirmations:
                 found.append(tile_id)
                 self.unplaced(tile_id)
         return sorted(found)
+
+    def _new_view(self, views: list[View | None], view: View | None) -> bool:
+        if view is None or self.min_view_change <= 0:
+            return True
+        return all(v is None or math.dist(v, view) >= self.min_view_change for v in views)
 
     def found_absent(self, tile_id: int, at: float = math.inf) -> bool:
         """A robot found `tile_id` physically absent at time `at` (s); True when that is news.
@@ -90,3 +103,21 @@ class MismatchDetector:
     def state_of(self, tile_ids: Iterable[int]) -> dict[int, tuple[int, int]]:
         """(q_i, q^s_i) of each tile, for reports."""
         return {t: (self.q.get(t, 0), self.q_sensed.get(t, 0)) for t in tile_ids}
+
+
+@dataclass
+class RepeatFilter:
+    """Which tiles a scan actually saw.
+
+    The inspection publishes fused states: a tile this scan did not see keeps the state older scans
+    gave it. Its evidence (scans that contributed, support counts) then stays the same, and such a
+    repeat must not count as a new, independent observation.
+    """
+
+    last: dict[int, tuple[int, ...]] = field(default_factory=dict)
+
+    def fresh(self, evidence: Mapping[int, tuple[int, ...]]) -> set[int]:
+        new = {tile for tile, e in evidence.items() if self.last.get(tile) != e}
+        self.last.update(evidence)
+        return new
+

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from auction_node.liveness import Liveness
-from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, RepeatFilter
 
 
 def test_only_tiles_claimed_placed_can_be_missing() -> None:
@@ -47,6 +47,18 @@ def test_confirmations_need_missing_scans_without_a_present_one_between() -> Non
     assert detector.sensed({4: MISSING}) == [4]
 
 
+def test_confirming_scans_must_come_from_different_standpoints() -> None:
+    detector = MismatchDetector(confirmations=2, min_view_change=0.15)
+    detector.placed(4)
+    assert detector.sensed({4: MISSING}, view=(1.0, 0.0)) == []
+    assert detector.sensed({4: MISSING}, view=(1.05, 0.02)) == []  # same standpoint: same error
+    assert detector.sensed({4: MISSING}, view=(0.0, 1.0)) == [4]
+    detector.placed(5)
+    assert detector.sensed({5: MISSING}, view=(1.0, 0.0)) == []
+    assert detector.sensed({5: PRESENT}, view=(0.0, 1.0)) == []  # cleared: start again
+    assert detector.sensed({5: MISSING}, view=(0.0, 1.1)) == []
+
+
 def test_a_robot_finding_a_support_absent_makes_it_missing_once() -> None:
     detector = MismatchDetector(confirmations=2)
     assert not detector.found_absent(4, at=50.0)  # never claimed placed
@@ -69,3 +81,10 @@ def test_liveness() -> None:
     assert live.alive() == ["robot1"]
     assert live.heard("robot2", 2.0) is True
     assert live.alive() == ["robot1", "robot2"]
+
+
+def test_repeated_fused_evidence_is_not_a_new_observation() -> None:
+    repeats = RepeatFilter()
+    assert repeats.fresh({4: (1, 300, 0), 5: (1, 0, 80)}) == {4, 5}
+    assert repeats.fresh({4: (2, 610, 0), 5: (1, 0, 80)}) == {4}  # 5 not seen again: its old verdict
+    assert repeats.fresh({4: (2, 610, 0), 5: (2, 0, 170)}) == {5}
