@@ -200,8 +200,8 @@ def draw_gantt(record: TrialRecord, robots: list[str], path: Path) -> None:
             ax.text((interval.start + interval.end) / 2, y, str(interval.tile), ha="center", va="center", fontsize=7)
     for event in record.removals():
         ax.axvline(event.t, color="#c23a3a", linestyle="--", linewidth=0.8)
-        ax.text(event.t, len(robots) - 0.45, f"tile {event.tile} removed", rotation=90, fontsize=6,
-                color="#c23a3a", va="top")
+        ax.text(event.t + 1.0, len(robots) - 0.25, f"tile {event.tile} removed", fontsize=6,
+                color="#c23a3a", va="top", ha="left")
     for award in record.awards:
         if award.winner in rows:
             ax.plot(award.t, rows[award.winner] + 0.45, marker="v", color="#7b3fb3", markersize=7)
