@@ -30,8 +30,9 @@ from std_msgs.msg import String
 
 from auction_node.auction import AuctionBook, Award
 from auction_node.liveness import Liveness
-from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, RepeatFilter
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
 from tiling_assembly.messages import pose_of, structure_from_msg
+from tiling_assembly.scan_freshness import RepeatFilter
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly_msgs.msg import (
@@ -87,6 +88,9 @@ class AuctionNode(Node):
         self.reopen_delay = float(self.get_parameter("reopen_delay").value)
         self.lost_robot_policy = str(self.get_parameter("lost_robot_policy").value)
         self.robots_find_missing = bool(self.get_parameter("robots_find_missing").value)
+        self.unconfirmed = UnconfirmedReports(float(self.get_parameter("unconfirmed_report_timeout").value))
+        if self.unconfirmed.timeout <= 0:
+            raise ValueError("unconfirmed_report_timeout must be positive")
         if self.lost_robot_policy not in ("replan", "auction"):
             raise ValueError(f"lost_robot_policy must be 'replan' or 'auction', got '{self.lost_robot_policy}'")
         if self.book.bid_window <= 0 or self.liveness.timeout <= 0:
@@ -131,6 +135,9 @@ class AuctionNode(Node):
         declare("lost_robot_policy", "replan", "'replan' (planner's /replan service) or 'auction' per tile.")
         declare("robots_find_missing", True,
                 "A support a robot found absent when placing on it is missing (false: only scans decide).")
+        declare("unconfirmed_report_timeout", 60.0,
+                "s (node clock): with robots_find_missing false, a support a robot found absent that no scan "
+                "has found missing by then is treated as missing, so the robot does not wait forever.")
 
     # --- helpers ------------------------------------------------------------------------------
     def now(self) -> float:
@@ -185,20 +192,32 @@ class AuctionNode(Node):
             self.detector.unplaced(msg.tile_id)
             self.decide(f"{msg.robot_name} gave up tile {msg.tile_id}: {msg.reason}", error=True)
             self.announce(msg.tile_id, AuctionAnnouncement.REASON_GAVE_UP, exclude=msg.robot_name)
-        elif msg.outcome == PlacementReport.OUTCOME_SUPPORT_MISSING and self.robots_find_missing:
+        elif msg.outcome == PlacementReport.OUTCOME_SUPPORT_MISSING:
+            at = stamp_seconds(msg.header.stamp)
             for support in msg.missing_supports:
-                if self.detector.found_absent(support, stamp_seconds(msg.header.stamp)):
-                    self.detected_wall[support] = time.time()
+                if self.detector.q.get(support, 0) != 1:
+                    continue  # found missing already, or never placed
+                if self.robots_find_missing:
+                    self.robot_found_missing(support, at, msg.robot_name, msg.tile_id)
+                else:
+                    self.unconfirmed.report(support, msg.robot_name, msg.tile_id, at)
                     self.decide(
-                        f"tile {support} was placed but {msg.robot_name} found it missing "
-                        f"when placing tile {msg.tile_id} on it"
+                        f"{msg.robot_name} found tile {support} absent when placing tile {msg.tile_id} on it; "
+                        f"waiting up to {self.unconfirmed.timeout:g} s for a scan to confirm"
                     )
-                    self.announce(support, AuctionAnnouncement.REASON_FOUND_MISSING)
+
+    def robot_found_missing(self, support: int, at: float, robot: str, tile_id: int, waited: bool = False) -> None:
+        if not self.detector.found_absent(support, at):
+            return  # found missing already (by a scan), or placed again since
+        self.detected_wall[support] = time.time()
+        unconfirmed = f"; no scan confirmed it within {self.unconfirmed.timeout:g} s" if waited else ""
+        self.decide(f"tile {support} was placed but {robot} found it missing when placing tile {tile_id} on it"
+                    f"{unconfirmed}")
+        self.announce(support, AuctionAnnouncement.REASON_FOUND_MISSING)
 
     def on_tile_states(self, msg: TileStateArray) -> None:
         detected = time.time()
-        evidence = {s.tile_id: (s.scan_count, s.physical_support, s.see_through_support) for s in msg.states}
-        fresh = self.repeats.fresh(evidence)
+        fresh = self.repeats.fresh_states(msg.states)
         sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states if s.tile_id in fresh}
         view = (msg.camera_pose.position.x, msg.camera_pose.position.y)
         for tile_id in self.detector.sensed(sensing, stamp_seconds(msg.header.stamp), view):
@@ -239,6 +258,8 @@ class AuctionNode(Node):
                     f"(auction {auction_id}); auctioning it again", error=True,
                 )
                 self.announce(pending.award.tile_id, pending.reason, exclude=pending.award.winner)
+        for support, at, robot, tile_id in self.unconfirmed.due(self.now()):
+            self.robot_found_missing(support, at, robot, tile_id, waited=True)
         due = [entry for entry in self.reopen if entry[0] <= self.now()]
         self.reopen = [entry for entry in self.reopen if entry[0] > self.now()]
         for _, tile_id, reason in due:

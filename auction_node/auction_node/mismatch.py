@@ -106,18 +106,24 @@ class MismatchDetector:
 
 
 @dataclass
-class RepeatFilter:
-    """Which tiles a scan actually saw.
+class UnconfirmedReports:
+    """Supports robots found absent while only scans decide (`robots_find_missing` false).
 
-    The inspection publishes fused states: a tile this scan did not see keeps the state older scans
-    gave it. Its evidence (scans that contributed, support counts) then stays the same, and such a
-    repeat must not count as a new, independent observation.
+    The reporting robot waits for the support to be placed again; if the scans never confirm it
+    missing (the VI robot cannot see it, or its scans do not align), nobody would ever replace it
+    and the robot would wait forever. After `timeout` s without a decision the report is acted on.
     """
 
-    last: dict[int, tuple[int, ...]] = field(default_factory=dict)
+    timeout: float  # s
+    pending: dict[int, tuple[float, float, str, int]] = field(default_factory=dict)  # support -> (due, at, robot, tile)
 
-    def fresh(self, evidence: Mapping[int, tuple[int, ...]]) -> set[int]:
-        new = {tile for tile, e in evidence.items() if self.last.get(tile) != e}
-        self.last.update(evidence)
-        return new
+    def report(self, support: int, robot: str, tile_id: int, at: float) -> None:
+        """`robot` found `support` absent at time `at` (s) when placing `tile_id` on it."""
+        self.pending.setdefault(support, (at + self.timeout, at, robot, tile_id))
 
+    def due(self, now: float) -> list[tuple[int, float, str, int]]:
+        """(support, report time, robot, tile) of the reports whose wait is over, oldest first."""
+        over = sorted((entry, support) for support, entry in self.pending.items() if entry[0] <= now)
+        for _, support in over:
+            del self.pending[support]
+        return [(support, at, robot, tile) for (_, at, robot, tile), support in over]

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 from auction_node.liveness import Liveness
-from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, RepeatFilter
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
+from tiling_assembly.scan_freshness import RepeatFilter
 
 
 def test_only_tiles_claimed_placed_can_be_missing() -> None:
@@ -88,3 +91,17 @@ def test_repeated_fused_evidence_is_not_a_new_observation() -> None:
     assert repeats.fresh({4: (1, 300, 0), 5: (1, 0, 80)}) == {4, 5}
     assert repeats.fresh({4: (2, 610, 0), 5: (1, 0, 80)}) == {4}  # 5 not seen again: its old verdict
     assert repeats.fresh({4: (2, 610, 0), 5: (2, 0, 170)}) == {5}
+    seen = SimpleNamespace(tile_id=5, scan_count=3, physical_support=0, see_through_support=260)
+    repeated = SimpleNamespace(tile_id=4, scan_count=2, physical_support=610, see_through_support=0)
+    assert repeats.fresh_states([seen, repeated]) == {5}
+
+
+def test_an_unconfirmed_report_is_due_after_the_timeout_once() -> None:
+    reports = UnconfirmedReports(timeout=60.0)
+    reports.report(3, "robot2", 9, at=100.0)
+    reports.report(3, "robot1", 11, at=130.0)  # the first report's wait counts
+    reports.report(5, "robot1", 12, at=120.0)
+    assert reports.due(159.9) == []
+    assert reports.due(160.0) == [(3, 100.0, "robot2", 9)]
+    assert reports.due(200.0) == [(5, 120.0, "robot1", 12)]
+    assert reports.due(500.0) == []

@@ -6,8 +6,9 @@ And: "If a tile is in state 'occluded', the VI-robot has to re-scan the building
 position before the building process can proceed."
 
 Each expected tile carries a priority: highest just after a robot reported it placed (it has to be
-checked), high while its state is undetermined (occluded, or never seen) or a single scan called it
-missing (to be confirmed, preferably from elsewhere), and otherwise growing
+checked) or reported it absent (a robot could not place on it: a scan should confirm), high while
+its state is undetermined (occluded, or never seen) or a single scan called it missing (to be
+confirmed, preferably from elsewhere), and otherwise growing
 with the time since it was last seen, so that every tile is looked at again now and then (tiles
 can disappear while building). Candidate viewpoints stand on rings around the structure, facing
 it; the next one is the candidate whose view (predicted by ray tracing S_a, see
@@ -47,6 +48,7 @@ def ring_viewpoints(structure: Structure, radii: Sequence[float], count: int) ->
 class PriorityWeights:
     just_placed: float = 4.0  # placed since it was last judged
     undetermined: float = 2.0  # occluded or never judged
+    suspected: float = 4.0  # a robot found it absent since it was last judged
     stale_time: float = 60.0  # s after which a tile seen present is worth 1 again
 
 
@@ -55,6 +57,7 @@ class TileKnowledge:
     state: str = UNKNOWN
     judged_at: float = -math.inf  # s, when a scan last judged it
     placed_at: float = -math.inf  # s, when a robot last reported it placed
+    suspected_at: float = -math.inf  # s, when a robot last reported it absent
 
 
 @dataclass
@@ -82,7 +85,14 @@ class Exploration:
     def placed(self, tile_id: int, now: float) -> None:
         self.tiles.setdefault(tile_id, TileKnowledge()).placed_at = now
 
+    def suspected(self, tile_id: int, now: float) -> None:
+        """A robot found `tile_id` physically absent (it could not place a tile on it)."""
+        if tile_id in self.tiles:
+            self.tiles[tile_id].suspected_at = now
+
     def judged(self, states: dict[int, str], now: float) -> None:
+        """A scan looked at these tiles (only those it saw: not the repeats of a fused report)."""
+
         for tile_id, state in states.items():
             if tile_id in self.tiles:
                 knowledge = self.tiles[tile_id]
@@ -93,7 +103,9 @@ class Exploration:
         w = self.weights
         out = {}
         for tile_id, k in self.tiles.items():
-            if k.placed_at > k.judged_at:
+            if k.suspected_at > k.judged_at:
+                out[tile_id] = w.suspected
+            elif k.placed_at > k.judged_at:
                 out[tile_id] = w.just_placed
             elif k.state in (OCCLUDED, UNKNOWN, MISSING):  # a missing call wants confirming
                 out[tile_id] = w.undetermined
@@ -103,7 +115,8 @@ class Exploration:
 
     def unresolved(self) -> list[int]:
         return sorted(
-            t for t, k in self.tiles.items() if k.placed_at > k.judged_at or k.state in (OCCLUDED, UNKNOWN, MISSING)
+            t for t, k in self.tiles.items()
+            if max(k.placed_at, k.suspected_at) > k.judged_at or k.state in (OCCLUDED, UNKNOWN, MISSING)
         )
 
     def choose(self, candidates: Sequence[Pose2], here: Pose2, now: float, gains: Sequence[float]) -> tuple[int, float]:

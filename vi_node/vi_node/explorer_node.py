@@ -2,7 +2,8 @@
 exploration). Runs in the VI robot's namespace (`/vi`), next to `vi_node`.
 
 A thin adapter around `exploration.Exploration` and `viewpoint.rank_viewpoints`. In: the latched
-`/structure`, `/placement_reports` (tiles claimed placed: the priority), `/auction/announcements`
+`/structure`, `/placement_reports` (tiles claimed placed, and supports a robot found absent: the
+priority), `/auction/announcements`
 (tiles no longer expected), `/tile_states` (what the scans judged). Out: goals to the base's
 `navigate_to` action. After each arrival it waits for the first tile states of a scan taken there
 (or a timeout, when the scan could not be aligned), then chooses again.
@@ -24,6 +25,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tiling_assembly.geometry import quaternion_from_rotation, rotation_from_rpy
 from tiling_assembly.messages import structure_from_msg
+from tiling_assembly.scan_freshness import RepeatFilter
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo
@@ -90,6 +92,7 @@ class ExplorerNode(Node):
         self.here: tuple[float, float, float] | None = None
         self.arrived_at: float | None = None  # s; None while driving
         self.driving = False
+        self.repeats = RepeatFilter()
 
         self.navigate = ActionClient(self, NavigateTo, "navigate_to")
         self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
@@ -129,6 +132,12 @@ class ExplorerNode(Node):
             self.get_logger().error(f"ignoring /structure: {error}")
 
     def on_report(self, msg: PlacementReport) -> None:
+        if msg.outcome == PlacementReport.OUTCOME_SUPPORT_MISSING:
+            for support in msg.missing_supports:
+                self.exploration.suspected(support, self.now())
+            absent = ", ".join(map(str, msg.missing_supports))
+            self.get_logger().info(f"{msg.robot_name} found tile(s) {absent} absent: looking there first")
+            return
         if msg.outcome != PlacementReport.OUTCOME_PLACED:
             return
         self.placed[msg.tile_id] = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
@@ -141,7 +150,9 @@ class ExplorerNode(Node):
 
     def on_states(self, msg: TileStateArray) -> None:
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        self.exploration.judged({s.tile_id: STATES.get(s.state, UNKNOWN) for s in msg.states}, stamp)
+        seen = self.repeats.fresh_states(msg.states)
+        self.exploration.judged({s.tile_id: STATES.get(s.state, UNKNOWN) for s in msg.states if s.tile_id in seen},
+                                stamp)
         if self.arrived_at is not None and stamp >= self.arrived_at + self.settle:
             self.arrived_at = None  # this viewpoint is done
             self.tick()

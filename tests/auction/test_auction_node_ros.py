@@ -1,0 +1,161 @@
+"""auction_node as a real ROS 2 process, when only scans decide (robots_find_missing false): a
+support a robot found absent waits for a scan to confirm it, and is acted on after
+unconfirmed_report_timeout if none does, so the robot that found it does not wait forever."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from tiling_assembly.messages import structure_to_msg
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.msg import (
+    AuctionAnnouncement,
+    PlacementReport,
+    RobotStatus,
+    Structure,
+    TileState,
+    TileStateArray,
+)
+
+pytestmark = pytest.mark.ros
+
+REPO = Path(__file__).resolve().parents[2]
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+DECISIONS = QoSProfile(depth=200, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+TIMEOUT = 3.0  # s, unconfirmed_report_timeout of the node under test
+
+
+def ros2_command() -> str:
+    if any((Path(p) / "ros2").exists() for p in os.environ.get("PATH", "").split(os.pathsep)):
+        return "ros2"
+    return str(REPO / "tools" / "ros2")
+
+
+class Team:
+    """Stands in for the structure publisher, one assembly robot and the inspection."""
+
+    def __init__(self) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("auction_test_team", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.announcements: list[tuple[float, AuctionAnnouncement]] = []
+        self.decisions: list[str] = []
+        self.node.create_subscription(AuctionAnnouncement, "/auction/announcements",
+                                      lambda m: self.announcements.append((time.monotonic(), m)), RELIABLE)
+        self.node.create_subscription(String, "/auction/decisions", lambda m: self.decisions.append(m.data),
+                                      DECISIONS)
+        self.structure_pub = self.node.create_publisher(Structure, "/structure", LATCHED)
+        self.report_pub = self.node.create_publisher(PlacementReport, "/placement_reports", REPORTS)
+        self.states_pub = self.node.create_publisher(TileStateArray, "/tile_states", RELIABLE)
+        self.status_pub = self.node.create_publisher(RobotStatus, "/robot_status", RELIABLE)
+        self.node.create_timer(0.2, lambda: self.status_pub.publish(RobotStatus(robot_name="robot1")))
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float, what: str) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+            if predicate():
+                return
+        raise AssertionError(f"no {what} within {timeout} s; decisions so far: {self.decisions}")
+
+    def spin_for(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def report(self, tile_id: int, outcome: int, missing: tuple[int, ...] = ()) -> None:
+        msg = PlacementReport(robot_name="robot1", tile_id=tile_id, outcome=outcome, attempts=1,
+                              missing_supports=list(missing))
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        self.report_pub.publish(msg)
+
+    def scan(self, missing: int, camera_x: float) -> None:
+        msg = TileStateArray()
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.camera_pose.position.x = camera_x
+        msg.states = [TileState(tile_id=missing, state=TileState.MISSING, scan_count=1, see_through_support=200)]
+        self.states_pub.publish(msg)
+
+    def announced(self, tile_id: int) -> list[tuple[float, AuctionAnnouncement]]:
+        return [(t, a) for t, a in self.announcements if a.tile_id == tile_id]
+
+    def close(self) -> None:
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def team() -> Iterator[tuple[Team, Any]]:
+    structure = load_structure(REPO / "config" / "structures" / "paper_14.yaml")
+    command = [ros2_command(), "run", "auction_node", "auction_node", "--ros-args",
+               "--params-file", str(REPO / "config" / "auction_node.yaml"),
+               "-p", "robots_find_missing:=false", "-p", f"unconfirmed_report_timeout:={TIMEOUT}",
+               "-p", "confirmations:=1", "-p", "confirmation_view_change:=0.0"]
+    process = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    team = Team()
+    try:
+        team.structure_pub.publish(structure_to_msg(structure))
+        team.spin_until(lambda: team.report_pub.get_subscription_count() > 0
+                        and team.states_pub.get_subscription_count() > 0, 30.0, "auction node")
+        team.spin_for(1.0)  # the auction node hears robot1's heartbeat
+        yield team, structure
+    finally:
+        team.close()
+        process.send_signal(signal.SIGINT)
+        try:
+            output, _ = process.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            output, _ = process.communicate()
+        assert "Traceback" not in output, output
+
+
+def test_a_report_no_scan_confirms_is_acted_on_after_the_timeout(team: tuple[Team, Any]) -> None:
+    team, structure = team
+    tile = next(t for t in structure.tile_ids if structure.supports[t])
+    support = structure.supports[tile][0]
+    team.report(support, PlacementReport.OUTCOME_PLACED)
+    team.spin_for(0.3)
+    reported = time.monotonic()
+    team.report(tile, PlacementReport.OUTCOME_SUPPORT_MISSING, (support,))
+    team.spin_until(lambda: any("waiting up to" in d for d in team.decisions), 5.0, "decision to wait")
+    team.spin_for(TIMEOUT - 1.0)
+    assert team.announced(support) == [], "acted on the robot's report before the timeout"
+    team.spin_until(lambda: team.announced(support), 5.0, "announcement after the timeout")
+    (at, announcement), = team.announced(support)
+    assert announcement.reason == AuctionAnnouncement.REASON_FOUND_MISSING
+    assert at - reported >= TIMEOUT - 0.2
+    assert any(f"no scan confirmed it within {TIMEOUT:g} s" in d for d in team.decisions), team.decisions
+
+
+def test_a_scan_that_confirms_the_report_is_acted_on_once(team: tuple[Team, Any]) -> None:
+    team, structure = team
+    tile = next(t for t in structure.tile_ids if structure.supports[t])
+    support = structure.supports[tile][0]
+    team.report(support, PlacementReport.OUTCOME_PLACED)
+    team.spin_for(0.3)
+    team.report(tile, PlacementReport.OUTCOME_SUPPORT_MISSING, (support,))
+    team.spin_for(0.5)
+    team.scan(support, camera_x=1.0)
+    team.spin_until(lambda: team.announced(support), 5.0, "announcement of the scan's finding")
+    team.spin_for(TIMEOUT + 1.0)
+    (_, announcement), = team.announced(support)
+    assert announcement.reason == AuctionAnnouncement.REASON_MISSING

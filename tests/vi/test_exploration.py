@@ -1,0 +1,67 @@
+"""Prioritized exploration of the VI robot (vi_node.exploration), without ROS."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from tiling_assembly.structure_file import load_structure
+from vi_node.exploration import MISSING, OCCLUDED, PRESENT, Exploration, PriorityWeights, nearest, ring_viewpoints
+
+WEIGHTS = PriorityWeights(just_placed=4.0, undetermined=2.0, suspected=5.0, stale_time=60.0)
+
+
+def _explored() -> Exploration:
+    exploration = Exploration(WEIGHTS)
+    exploration.expect([1, 2, 3, 4])
+    exploration.judged({1: PRESENT, 2: PRESENT, 3: OCCLUDED, 4: MISSING}, now=100.0)
+    return exploration
+
+
+def test_priority_follows_what_is_known_of_each_tile() -> None:
+    exploration = _explored()
+    exploration.placed(2, now=110.0)
+    priority = exploration.priority(now=130.0)
+    assert priority[1] == pytest.approx(30.0 / 60.0)  # seen present 30 s ago: grows back to 1
+    assert priority[2] == 4.0  # placed again since it was judged
+    assert priority[3] == 2.0 and priority[4] == 2.0  # undetermined, a missing call to confirm
+    assert exploration.priority(now=1000.0)[1] == 1.0
+    assert exploration.unresolved() == [2, 3, 4]
+
+
+def test_a_tile_a_robot_found_absent_is_looked_at_first_until_a_scan_judges_it() -> None:
+    exploration = _explored()
+    exploration.suspected(1, now=120.0)
+    exploration.suspected(99, now=120.0)  # not expected: ignored
+    priority = exploration.priority(now=121.0)
+    assert max(priority, key=priority.get) == 1 and priority[1] == 5.0
+    assert 99 not in priority
+    assert 1 in exploration.unresolved()
+    exploration.judged({2: PRESENT}, now=125.0)  # a scan that did not see tile 1
+    assert exploration.priority(now=126.0)[1] == 5.0
+    exploration.judged({1: MISSING}, now=130.0)
+    assert exploration.priority(now=131.0)[1] == 2.0  # now a missing call to confirm
+
+
+def test_choose_weighs_gain_against_driving_and_avoids_failed_viewpoints() -> None:
+    exploration = Exploration(WEIGHTS, travel_cost=1.0, failure_memory=30.0)
+    candidates = [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (0.0, 3.0, 0.0)]
+    here = (0.0, 0.0, 0.0)
+    assert exploration.choose(candidates, here, 0.0, [1.0, 3.5, 3.6]) == (1, pytest.approx(1.5))
+    exploration.viewpoint_failed(1, now=0.0)
+    assert exploration.choose(candidates, here, 10.0, [1.0, 3.5, 3.6])[0] == 0
+    assert exploration.choose(candidates, here, 31.0, [1.0, 3.5, 3.6])[0] == 1  # forgotten after 30 s
+
+
+def test_ring_viewpoints_face_the_structure() -> None:
+    structure = load_structure("config/structures/paper_14.yaml")
+    poses = ring_viewpoints(structure, [1.0, 1.5], 6)
+    assert len(poses) == 12
+    lo, hi = structure.bounds
+    centre = ((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2)
+    for x, y, yaw in poses:
+        assert math.dist((x, y), centre) == pytest.approx(1.0) or math.dist((x, y), centre) == pytest.approx(1.5)
+        bearing = math.atan2(centre[1] - y, centre[0] - x)
+        assert abs(math.remainder(yaw - bearing, 2 * math.pi)) < 1e-9
+    assert nearest(poses, (centre[0] + 1.0, centre[1], 0.0)) == 0
