@@ -74,6 +74,8 @@ class AssemblyNode(Node):
 
         self.executor_state: PlanExecutor | None = None
         self.pending_plan: AssemblyPlan | None = None
+        # placements and missing tiles heard before the structure (discovery can deliver it late)
+        self.early_news: list[tuple[bool, int]] = []  # (placed, tile id), in arrival order
         self.retry_after = 0.0  # s of node time before the next attempt may start
         self.last_wait_logged: tuple[int, ...] = ()
         self.goal_handle = None
@@ -147,6 +149,12 @@ class AssemblyNode(Node):
         self.executor_state = PlanExecutor(
             self.robot_name, structure, max_attempts=self.max_attempts, strict_order=self.strict_order
         )
+        for placed, tile_id in self.early_news:
+            if placed:
+                self.executor_state.note_placed(tile_id)
+            else:
+                self.executor_state.note_missing(tile_id)
+        self.early_news.clear()
         if self.pending_plan is not None:
             plan, self.pending_plan = self.pending_plan, None
             self.on_plan(plan)
@@ -171,16 +179,22 @@ class AssemblyNode(Node):
             self.step()
 
     def on_report(self, msg: PlacementReport) -> None:
-        if self.executor_state is None or msg.outcome != PlacementReport.OUTCOME_PLACED:
+        if msg.outcome != PlacementReport.OUTCOME_PLACED:
+            return
+        if self.executor_state is None:
+            self.early_news.append((True, msg.tile_id))
             return
         self.executor_state.note_placed(msg.tile_id)
         self.step()
 
     def on_announcement(self, msg: AuctionAnnouncement) -> None:
         state = self.executor_state
+        missing = msg.reason in (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING)
         if state is None:
+            if missing:
+                self.early_news.append((False, msg.tile_id))
             return
-        if msg.reason in (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING):
+        if missing:
             state.note_missing(msg.tile_id)
         if not self.bid_in_auctions or self.robot_name not in msg.bidders:
             return

@@ -33,6 +33,9 @@ def record() -> TrialRecord:
         Scan(56.0, {7: "present", 9: "present"}, fresh=frozenset({7, 9})),  # 7 called present while away
         Scan(57.0, {7: "present", 9: "missing"}, fresh=frozenset()),  # repeats older views: not counted
         Scan(58.0, {9: "missing"}, fresh=frozenset({9})),
+        Scan(52.0, {6: "present"}, fresh=frozenset({6})),  # the last word on 6 before a robot found it
+        Scan(82.0, {8: "missing"}, fresh=frozenset({8})),
+        Scan(85.0, {8: "present"}, fresh=frozenset({8})),  # ... and on 8, never found
     ]
     return r
 
@@ -46,7 +49,8 @@ def test_every_removal_is_detected_found_by_a_robot_or_undetermined() -> None:
 
 def test_false_calls_count_fresh_judgements_and_auctions_for_tiles_in_place() -> None:
     stats = detection_stats(record())
-    assert stats.missing_called_present == 1
+    assert stats.missing_called_present == 3  # 7, 6 and 8: each called present by some scan
+    assert stats.left_present == 2  # 6 and 8: inspection's last word was present (7 it found)
     assert stats.present_called_missing == 2
     assert (stats.present_judgements, stats.present_judged_missing) == (2, 1)
     assert false_missing_calls(record()) == [{"t": 90.0, "tile": 9}, {"t": 120.0, "tile": 7}]

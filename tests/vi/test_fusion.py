@@ -50,6 +50,18 @@ def test_a_few_see_through_pixels_make_a_present_tile_undetermined_not_present()
     assert fusion.state_of(3) == TileState.MISSING
 
 
+def test_a_glimpse_of_a_decided_tile_changes_nothing() -> None:
+    fusion = TileFusion()
+    for _ in range(5):
+        fusion.add([3], seen(200, 2, 220), [P])
+    before = fusion.tiles[3]
+    fusion.add([3], seen(1, 1, 160), [O])  # two pixels: not even the scan count moves
+    assert fusion.tiles[3] is before and fusion.tiles[3].scans == 5
+    assert int(fusion.summed([3]).see_through[0]) == 10 and fusion.state_of(3) == TileState.PRESENT
+    fusion.add([3], seen(9, 1, 160), [O])  # ten pixels leaning present: added
+    assert fusion.tiles[3].scans == 6 and int(fusion.summed([3]).agree[0]) == 1009
+
+
 def test_replaced_tiles_start_afresh_and_unknown_tiles_are_unknown() -> None:
     fusion = TileFusion()
     fusion.add([1, 2], TileEvidence(*(np.array([100, 2]),) * 6), [P, M])

@@ -91,8 +91,9 @@ def detection_table(result: ExperimentResult) -> list[str]:
         ["  by inspection (the VI robot's scans)", str(stats.detected), str(PAPER["detected"])],
         ["  by a robot placing a tile on it, first", str(stats.found_by_robot), "-"],
         ["undetermined (never detected)", str(stats.undetermined), str(PAPER["undetermined"])],
-        ["false positives: missing tile reported present", str(stats.missing_called_present),
+        ["false positives: removed tile last reported present", str(stats.left_present),
          str(PAPER["missing_called_present"])],
+        ["  removed tiles some single scan called present", str(stats.missing_called_present), "-"],
         ["false negatives: present tile reported missing", str(stats.present_called_missing),
          str(PAPER["present_called_missing"])],
         ["present tiles judged missing, per scan", f"{rate:.2%}", "-"],
@@ -260,6 +261,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "failure": record.failure, "timed_out": record.timed_out, "makespan": record.makespan(),
             "removed": stats.removed, "detected": stats.detected, "found_by_robot": stats.found_by_robot,
             "undetermined": stats.undetermined,
+            "left_present": stats.left_present,
             "missing_called_present": stats.missing_called_present,
             "present_called_missing": stats.present_called_missing,
             "auctions": len(record.awards), "award_latencies": record.award_latencies,
@@ -268,7 +270,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "removals": [
                 {"t": o.removed_at, "tile": o.tile, "detected_at": o.detected_at,
                  "found_by_robot_at": o.found_by_robot_at, "back_at": o.back_at,
-                 "scans_calling_it_present": o.called_present}
+                 "scans_calling_it_present": o.called_present, "last_judged": o.last_judged}
                 for o in removal_outcomes(record)
             ],
             "false_missing_calls": false_missing_calls(record),

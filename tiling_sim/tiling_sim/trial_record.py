@@ -2,8 +2,9 @@
 
 The record holds the world's truth (tiles placed and removed, with simulated times), every scan's
 judgement of every tile, the auctions and the robots' progress; the functions below turn it into
-the paper's detection statistics (removed tiles detected / undetermined; missing tiles called
-present, the paper's "false positives"; present tiles called missing, its "false negatives"), the
+the paper's detection statistics (removed tiles detected / undetermined; removed tiles the
+inspection last called present, the paper's "false positives", and, stricter, removed tiles any
+single scan called present; present tiles called missing, its "false negatives"), the
 allocation after detections (Table 2), a schedule per robot for the Gantt chart, and makespans.
 """
 
@@ -123,6 +124,7 @@ class RemovalOutcome:
     found_by_robot_at: float | None  # when a robot found it missing first (placing on it)
     called_present: int  # scans that saw it and called it present while it was away
     back_at: float | None  # when it was physically in place again
+    last_judged: str | None = None  # the last scan's word on it before anyone found it (or it came back)
 
 
 @dataclass
@@ -131,7 +133,9 @@ class DetectionStats:
     detected: int = 0  # by inspection
     found_by_robot: int = 0  # by a robot placing a tile on it, before inspection did
     undetermined: int = 0  # by neither
-    missing_called_present: int = 0  # removals some scan called present (the paper's false positives)
+    left_present: int = 0  # removals inspection did not find whose last judgement was present (the
+    # paper's false positives: the inspection's final word on a removed tile was "present")
+    missing_called_present: int = 0  # removals some single scan called present (stricter than the paper)
     present_called_missing: int = 0  # auctions for tiles that were there (the paper's false negatives)
     present_judgements: int = 0  # (present tile, scan) pairs judged
     present_judged_missing: int = 0  # of those, called missing
@@ -139,7 +143,7 @@ class DetectionStats:
     by_type: dict[str, list[int]] = field(default_factory=dict)  # type -> [removed, found by anyone]
 
     def add(self, other: DetectionStats) -> None:
-        for name in ("removed", "detected", "found_by_robot", "undetermined", "missing_called_present",
+        for name in ("removed", "detected", "found_by_robot", "undetermined", "left_present", "missing_called_present",
                      "present_called_missing", "present_judgements", "present_judged_missing"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.detection_delays += other.detection_delays
@@ -163,11 +167,12 @@ def removal_outcomes(record: TrialRecord) -> list[RemovalOutcome]:
         end = back if back is not None else float("inf")
         detected = _first_announcement(record, removal.tile, REASON_MISSING, removal.t, end)
         found = _first_announcement(record, removal.tile, REASON_FOUND_MISSING, removal.t, end)
-        called_present = sum(
-            1 for s in record.scans
-            if removal.t < s.t < end and removal.tile in s.fresh and s.states.get(removal.tile) == PRESENT
-        )
-        outcomes.append(RemovalOutcome(removal.tile, removal.t, detected, found, called_present, back))
+        judged = [s for s in record.scans if removal.t < s.t < end and removal.tile in s.fresh]
+        called_present = sum(1 for s in judged if s.states.get(removal.tile) == PRESENT)
+        first_found = min((t for t in (detected, found) if t is not None), default=end)
+        before = [s.states.get(removal.tile) for s in judged if s.t <= first_found]
+        outcomes.append(RemovalOutcome(removal.tile, removal.t, detected, found, called_present, back,
+                                       before[-1] if before else None))
     return outcomes
 
 
@@ -190,6 +195,8 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
             stats.undetermined += 1
         if outcome.called_present:
             stats.missing_called_present += 1
+        if outcome.detected_at is None and outcome.last_judged == PRESENT:
+            stats.left_present += 1
     for announcement in record.announcements:
         if announcement.reason == REASON_MISSING and record.present_at(announcement.tile, announcement.t, intervals):
             stats.present_called_missing += 1

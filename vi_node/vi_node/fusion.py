@@ -5,9 +5,11 @@ kept per tile, so a tile undetermined from one view is resolved by adding what o
 it. Tiles can be removed while the structure is built: when a scan's own pixels of a tile lean the
 other way than the fused decision (most of them see through a tile fused present, or agree with a
 tile fused missing), even too few of them to decide alone, the old evidence is dropped and the new
-scan counts alone: the tile is undetermined until new views decide it (a tile seen present and
-later seen missing is reported missing, and not present in between). A tile that is (re)placed starts
-afresh. A tile found misplaced stays so until a scan sees it present and in place.
+scan counts alone: the tile is undetermined until new views decide it (a tile
+seen present and later seen missing is reported missing, and not present in between). A scan that
+glimpses a decided tile with too few pixels to lean either way leaves it as it is: its stale decision
+is not reported as a new observation. A tile that is (re)placed starts afresh. A tile found
+misplaced stays so until a scan sees it present and in place.
 
 Paper mode fuses by its own rules: the latest scan that resolved a tile (present or missing)
 decides it.
@@ -82,6 +84,8 @@ class TileFusion:
                 fused.evidence = fused.evidence + mine
                 if resolved or fused.state not in RESOLVED:
                     fused.state = scan_state
+            elif fused.state in RESOLVED and int(mine.observed[0]) < MIN_LEANING_PIXELS:
+                continue  # a glimpse: says nothing about a decided tile
             elif fused.state in RESOLVED and self._leaning(mine) not in (None, fused.state):
                 # the tile changed: this scan counts alone
                 fused = FusedTile(mine, scan_state, largest_view=int(mine.judged[0]))
