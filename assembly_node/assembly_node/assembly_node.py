@@ -20,13 +20,13 @@ from geometry_msgs.msg import Point, PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionClient
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from assembly_node.bidding import compute_bid
 from assembly_node.executor import Outcome, PlanExecutor, StepKind
 from tiling_assembly.messages import pose_of, structure_from_msg
+from tiling_assembly.spinning import spin_until_shutdown
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.time_model import TimeModel
@@ -358,6 +358,7 @@ class AssemblyNode(Node):
     def publish_status(self) -> None:
         status = RobotStatus(robot_name=self.robot_name)
         status.header.stamp = self.get_clock().now().to_msg()
+        status.driver_ready = self.place_client.server_is_ready()
         state = self.executor_state
         if state is None:
             status.state = RobotStatus.IDLE
@@ -387,9 +388,7 @@ def main(args: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         return 2
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_until_shutdown(node)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

@@ -23,7 +23,6 @@ import rclpy
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
@@ -33,6 +32,7 @@ from auction_node.liveness import Liveness
 from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
 from tiling_assembly.messages import pose_of, structure_from_msg
 from tiling_assembly.scan_freshness import RepeatFilter
+from tiling_assembly.spinning import spin_until_shutdown
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly_msgs.msg import (
@@ -341,9 +341,7 @@ def main(args: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         return 2
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_until_shutdown(node)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

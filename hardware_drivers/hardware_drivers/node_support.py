@@ -13,11 +13,12 @@ from typing import Any
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from hardware_drivers.device_health import HealthReport, Level
+from tiling_assembly.spinning import spin_until_shutdown
 
 DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 # REP 2003: sensor drivers publish reliable, so best-effort and reliable subscribers both connect
@@ -120,18 +121,14 @@ def run_node(make_node: Callable[[], Node], executor: Callable[[], Executor] = S
         rclpy.try_shutdown()
         return 2
     spinner = executor()
-    spinner.add_node(node)
     try:
-        spinner.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_until_shutdown(node, spinner)
     finally:
         if on_shutdown is not None:
             try:
                 on_shutdown(node)
             except Exception as error:
                 print(f"{node.get_name()}: while shutting down: {error}", file=sys.stderr)
-        spinner.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -30,6 +30,7 @@ from planner_node.parameters import NODE_NAME, ParameterError, PlannerParameters
 from planner_node.plan_messages import plan_to_msg
 from planner_node.planner import Plan, PlanningError, plan_assembly, replan_assembly
 from tiling_assembly.messages import structure_to_msg
+from tiling_assembly.spinning import spin_until_shutdown
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.msg import AssemblyPlan, Structure
@@ -199,9 +200,7 @@ def main(args: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         return 0
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_until_shutdown(node)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

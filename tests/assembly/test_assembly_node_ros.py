@@ -1,5 +1,6 @@
 """assembly_node as a real ROS 2 process: placements it hears before the structure reaches it
-(discovery can deliver the latched structure late) still count when its task starts."""
+(discovery can deliver the latched structure late) still count when its task starts; its heartbeat
+says when its robot's place_tile server is reachable (the experiment starts simulated time then)."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import PlaceTile
-from tiling_assembly_msgs.msg import AssemblyPlan, AssemblyTask, PlacementReport, Structure
+from tiling_assembly_msgs.msg import AssemblyPlan, AssemblyTask, PlacementReport, RobotStatus, Structure
 
 pytestmark = pytest.mark.ros
 
@@ -58,6 +59,8 @@ def test_placements_heard_before_the_structure_count() -> None:
     reports = node.create_publisher(PlacementReport, "/placement_reports", REPORTS)
     structure_pub = node.create_publisher(Structure, "/structure", LATCHED)
     plan_pub = node.create_publisher(AssemblyPlan, "/plan", LATCHED)
+    statuses: list[RobotStatus] = []
+    node.create_subscription(RobotStatus, "/robot_status", statuses.append, 10)
 
     def spin_until(predicate, timeout: float) -> bool:  # type: ignore[no-untyped-def]
         deadline = time.monotonic() + timeout
@@ -69,6 +72,7 @@ def test_placements_heard_before_the_structure_count() -> None:
 
     try:
         assert spin_until(lambda: reports.get_subscription_count() > 0, 30.0), "assembly_node did not come up"
+        assert spin_until(lambda: any(s.driver_ready for s in statuses), 20.0), "no heartbeat with the driver ready"
         for support in supports:
             msg = PlacementReport(robot_name="robot2", tile_id=support, outcome=PlacementReport.OUTCOME_PLACED)
             msg.header.stamp = node.get_clock().now().to_msg()

@@ -44,7 +44,26 @@ def test_every_removal_is_detected_found_by_a_robot_or_undetermined() -> None:
     stats = detection_stats(record())
     assert (stats.removed, stats.detected, stats.found_by_robot, stats.undetermined) == (3, 1, 1, 1)
     assert stats.detection_delays == [10.0, 15.0]  # to the first finding, by anyone
-    assert stats.by_type == {"trapezoid": [2, 2], "square": [1, 0]}
+    assert stats.by_type == {"trapezoid": [2, 1, 2], "square": [1, 0, 0]}  # removed, said missing, found
+
+
+def test_the_paper_counts_the_inspections_last_word_on_each_removed_tile() -> None:
+    stats = detection_stats(record())
+    # 7: inspection's call opened its auction; 6 and 8: last called present
+    assert (stats.reported_missing, stats.reported_nothing, stats.left_present) == (1, 0, 2)
+    r = TrialRecord(trial=2, seed=2, removals_planned=3, tile_types={1: "a", 2: "a", 3: "a"})
+    r.events = [WorldEvent(10.0, "placed", t) for t in (1, 2, 3)] + [
+        WorldEvent(20.0, "removed", t) for t in (1, 2, 3)
+    ]
+    r.announcements = [Announcement(40.0, 1, t, REASON_FOUND_MISSING) for t in (1, 2, 3)]
+    r.scans = [
+        Scan(25.0, {1: "missing", 2: "misplaced", 3: "occluded"}, fresh=frozenset({1, 2, 3})),
+        Scan(30.0, {1: "missing", 2: "misplaced", 3: "present"}, fresh=frozenset({1, 2})),  # 3: a repeat
+    ]
+    stats = detection_stats(r)
+    # 1 said missing though a robot found it first; "misplaced" claims 2 is there; 3 was undetermined
+    assert (stats.reported_missing, stats.left_present, stats.reported_nothing) == (1, 1, 1)
+    assert (stats.detected, stats.found_by_robot) == (0, 3)
 
 
 def test_false_calls_count_fresh_judgements_and_auctions_for_tiles_in_place() -> None:
@@ -53,4 +72,5 @@ def test_false_calls_count_fresh_judgements_and_auctions_for_tiles_in_place() ->
     assert stats.left_present == 2  # 6 and 8: inspection's last word was present (7 it found)
     assert stats.present_called_missing == 2
     assert (stats.present_judgements, stats.present_judged_missing) == (2, 1)
+    assert stats.present_tiles_called_missing == 1  # 9, in its one stay in place
     assert false_missing_calls(record()) == [{"t": 90.0, "tile": 9}, {"t": 120.0, "tile": 7}]

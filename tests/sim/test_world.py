@@ -5,12 +5,21 @@ from __future__ import annotations
 import itertools
 import math
 
+import numpy as np
 import pytest
 from conftest import STRUCTURES
 
+from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure_file import load_structure
 from tiling_sim.faults import FaultInjector
-from tiling_sim.robot_motion import MotionModel, approach_point, drive_time_to_pose, placement_phases, start_positions
+from tiling_sim.robot_motion import (
+    MotionModel,
+    approach_point,
+    drive_time_to_pose,
+    footprint_overlaps,
+    placement_phases,
+    start_positions,
+)
 from tiling_sim.world import PhysicalWorld, PlaceCheck
 
 PAPER = load_structure(STRUCTURES / "paper_14.yaml")
@@ -53,6 +62,32 @@ def test_placement_phases_add_up() -> None:
     expected = 1.0 / 0.2 + 1 + 5 + math.dist((1.0, 0.0), target) / 0.2 + 8 + 2
     assert sum(p.duration for p in phases) == pytest.approx(expected)
     assert phases[-1].end == target
+
+
+def test_box_and_polygon_overlap_by_separating_axes() -> None:
+    diamond = np.array([[0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])
+    assert footprint_overlaps((0.0, 0.0), (0.1, 0.1), diamond)
+    assert footprint_overlaps((1.05, 0.0), (0.1, 0.1), diamond)  # the box's edge reaches the corner
+    assert not footprint_overlaps((0.7, 0.7), (0.1, 0.1), diamond)  # inside the bounding box, beside the edge
+    assert not footprint_overlaps((1.2, 0.0), (0.1, 0.1), diamond)
+
+
+def test_a_robot_never_stands_on_the_structure() -> None:
+    """With the base's footprint given, the robot stops beside the structure, as near to the tile as it can."""
+    footprints = [convex_hull_2d(tile.vertices[:, :2]) for tile in PAPER.tiles.values()]
+    model = MotionModel(base_size=(0.33, 0.33), base_clearance=0.03)
+    half = (0.165 + 0.03, 0.165 + 0.03)
+    for tile in PAPER.tiles.values():
+        tile_xy = (tile.position[0], tile.position[1])
+        for cache in ((1.0, -0.6), (-1.0, 0.6), (0.0, -1.0), (1.0, 0.6)):
+            stop = approach_point(model, tile_xy, cache, footprints)
+            assert not any(footprint_overlaps(stop, half, p) for p in footprints)
+            assert math.dist(stop, tile_xy) < 0.35  # the near side, not round the far end
+            without = approach_point(MotionModel(), tile_xy, cache)  # no footprint: off the tile towards the cache
+            assert math.dist(without, tile_xy) == pytest.approx(0.25)
+    # tile 8 sits at the +x end: a robot coming from the octagon cache (+x, -y) used to stand on tile 7
+    stop = approach_point(model, (0.125, 0.0), (1.0, -0.6), footprints)
+    assert not footprint_overlaps(stop, half, footprints[7 - 1])
 
 
 def test_drive_time_turns_then_drives() -> None:

@@ -62,6 +62,21 @@ def test_a_glimpse_of_a_decided_tile_changes_nothing() -> None:
     assert fusion.tiles[3].scans == 6 and int(fusion.summed([3]).agree[0]) == 1009
 
 
+def test_a_split_view_leaves_a_present_tile_undetermined_until_a_view_settles_it() -> None:
+    fusion = TileFusion()
+    for _ in range(5):
+        fusion.add([3], seen(200, 2, 220), [P])
+    # half its pixels see through (taken away, the rest agreeing by chance, or the view is off):
+    # summed with the old views it would still read present, but the old views do not vouch for it
+    fusion.add([3], seen(300, 200, 600), [O])
+    assert fusion.state_of(3) == TileState.OCCLUDED
+    assert int(fusion.summed([3]).agree[0]) == 1300  # the evidence is kept ...
+    fusion.add([3], seen(150, 3, 160), [P])  # ... and a clear view settles it
+    assert fusion.state_of(3) == TileState.PRESENT
+    fusion.add([3], seen(20, 400, 430), [M])  # a clear view the other way: gone
+    assert fusion.state_of(3) == TileState.MISSING
+
+
 def test_replaced_tiles_start_afresh_and_unknown_tiles_are_unknown() -> None:
     fusion = TileFusion()
     fusion.add([1, 2], TileEvidence(*(np.array([100, 2]),) * 6), [P, M])

@@ -260,8 +260,8 @@ def trial_summary(record: TrialRecord) -> str:
         return "did not finish in time"
     stats = detection_stats(record)
     return (f"complete in {record.makespan():.0f} s simulated; removed {stats.removed}, "
-            f"detected {stats.detected} by inspection + {stats.found_by_robot} by robots, "
-            f"auctions {len(record.awards)}")
+            f"inspection said missing {stats.reported_missing}, found first by inspection {stats.detected} "
+            f"/ by robots {stats.found_by_robot}, auctions {len(record.awards)}")
 
 
 def total_stats(records: list[TrialRecord]) -> DetectionStats:

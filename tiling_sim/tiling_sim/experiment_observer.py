@@ -82,7 +82,8 @@ class ExperimentObserver(Node):
             waiting.append("the world's first event")
         if not self.record.plans:
             waiting.append("the plan")
-        waiting += [f"{r}'s heartbeat" for r in self.robots if r not in self.heard_from]
+        # a robot that cannot reach its place_tile server yet would start late on simulated time
+        waiting += [f"{r}'s heartbeat with its driver ready" for r in self.robots if r not in self.heard_from]
         return waiting
 
     def start(self) -> None:
@@ -139,7 +140,8 @@ class ExperimentObserver(Node):
         self.record.decisions.append(msg.data)
 
     def on_status(self, msg: RobotStatus) -> None:
-        self.heard_from.add(msg.robot_name)
+        if msg.driver_ready:
+            self.heard_from.add(msg.robot_name)
         if self.start_sent:
             self.record.statuses.append(
                 StatusSample(seconds(msg.header.stamp), msg.robot_name, msg.state, msg.current_tile))

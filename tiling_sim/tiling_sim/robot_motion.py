@@ -3,15 +3,21 @@ the tile's type, finds and picks the tile, drives to the structure and places it
 
 A placement is a sequence of timed phases from the robot's current position; durations follow
 distance and speed, plus fixed pick and place times, all from `config/tiling_sim.yaml`. The robot
-stands off the tile by `approach_distance` (the arm's reach) on the side facing its cache.
+stands off the tile by `approach_distance` (the arm's reach) on the side facing its cache, or further
+out on that side when its base would otherwise stand on other tiles of the structure.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.typing import NDArray
+
 Point2 = tuple[float, float]
+Polygon = NDArray[np.float64]  # (N, 2) convex, counter-clockwise
 
 
 @dataclass(frozen=True)
@@ -23,6 +29,8 @@ class MotionModel:
     place_time: float = 10.0  # s, arm out, release, back
     retreat_time: float = 2.0  # s, back off from the structure
     approach_distance: float = 0.25  # m from the tile's centre to where the base stops
+    base_size: Point2 = (0.0, 0.0)  # m, x and y size of the base's footprint (an axis-aligned box)
+    base_clearance: float = 0.03  # m the base keeps from every tile of the structure
 
     def __post_init__(self) -> None:
         for name in ("drive_speed", "turn_speed"):
@@ -41,16 +49,66 @@ def _drive_time(model: MotionModel, start: Point2, end: Point2) -> float:
     return math.dist(start, end) / model.drive_speed
 
 
-def approach_point(model: MotionModel, tile_xy: Point2, cache: Point2) -> Point2:
-    """Where the base stops to place a tile: off the tile towards the cache."""
-    dx, dy = cache[0] - tile_xy[0], cache[1] - tile_xy[1]
-    norm = math.hypot(dx, dy) or 1.0
-    return (tile_xy[0] + dx / norm * model.approach_distance, tile_xy[1] + dy / norm * model.approach_distance)
+def footprints_overlap(centres: NDArray[np.float64], half_size: Point2, polygon: Polygon) -> NDArray[np.bool_]:
+    """For (K, 2) centres of axis-aligned boxes, which overlap a convex polygon (separating axes)."""
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    axes = np.vstack([[1.0, 0.0], [0.0, 1.0], np.column_stack([edges[:, 1], -edges[:, 0]])])
+    box_radius = half_size[0] * np.abs(axes[:, 0]) + half_size[1] * np.abs(axes[:, 1])
+    along = centres @ axes.T  # (K, axes)
+    vertices = polygon @ axes.T  # (N, axes)
+    separated = (along + box_radius < vertices.min(axis=0)) | (along - box_radius > vertices.max(axis=0))
+    return ~separated.any(axis=1)
 
 
-def placement_phases(model: MotionModel, start: Point2, cache: Point2, tile_xy: Point2) -> list[Phase]:
-    """The timed phases of one placement (phase numbers of PlaceTile.Feedback)."""
-    target = approach_point(model, tile_xy, cache)
+def footprint_overlaps(centre: Point2, half_size: Point2, polygon: Polygon) -> bool:
+    """Whether an axis-aligned box and a convex polygon overlap."""
+    return bool(footprints_overlap(np.array([centre], dtype=float), half_size, polygon)[0])
+
+
+TURN_PENALTY = 0.02  # m per rad: of two stops equally near the tile, the one nearer the cache side wins
+
+
+def approach_point(model: MotionModel, tile_xy: Point2, cache: Point2, obstacles: Sequence[Polygon] = ()) -> Point2:
+    """Where the base stops to place a tile: `approach_distance` off the tile towards the cache.
+
+    When its footprint would stand there on one of `obstacles` (the structure's tile footprints), it
+    stops at the nearest point around the tile (headings every 5 degrees, distances every 1 cm) where
+    it stands clear of all of them, as a robot drives round to the near side of the structure.
+    """
+    towards_cache = math.atan2(cache[1] - tile_xy[1], cache[0] - tile_xy[0])
+    origin = np.asarray(tile_xy, dtype=float)
+    if not obstacles:
+        return stop_at(origin, towards_cache, model.approach_distance)
+    half = (model.base_size[0] / 2 + model.base_clearance, model.base_size[1] / 2 + model.base_clearance)
+    turns = np.radians(5.0 * np.arange(-35, 37))
+    span = max(float(np.abs(p - origin).max()) for p in obstacles) + 2 * max(half)
+    distances = model.approach_distance + 0.01 * np.arange(int(span / 0.01) + 1)
+    headings = towards_cache + turns
+    directions = np.column_stack([np.cos(headings), np.sin(headings)])
+    stops = origin + distances[None, :, None] * directions[:, None, :]  # (headings, distances, 2)
+    blocked = np.zeros(stops.shape[:2], dtype=bool)
+    flat = stops.reshape(-1, 2)
+    for polygon in obstacles:
+        blocked |= footprints_overlap(flat, half, polygon).reshape(blocked.shape)
+    clear = ~blocked
+    nearest = np.argmax(clear, axis=1)  # first clear distance per heading
+    cost = np.where(clear.any(axis=1), distances[nearest] + TURN_PENALTY * np.abs(turns), np.inf)
+    best = int(np.argmin(cost))
+    if not np.isfinite(cost[best]):
+        return stop_at(origin, towards_cache, float(distances[-1]))
+    return stop_at(origin, float(headings[best]), float(distances[nearest[best]]))
+
+
+def stop_at(origin: NDArray[np.float64], heading: float, distance: float) -> Point2:
+    return (float(origin[0] + distance * math.cos(heading)), float(origin[1] + distance * math.sin(heading)))
+
+
+def placement_phases(
+    model: MotionModel, start: Point2, cache: Point2, tile_xy: Point2, obstacles: Sequence[Polygon] = ()
+) -> list[Phase]:
+    """The timed phases of one placement (phase numbers of PlaceTile.Feedback); the base stops clear
+    of `obstacles` (see `approach_point`)."""
+    target = approach_point(model, tile_xy, cache, obstacles)
     return [
         Phase(1, _drive_time(model, start, cache), cache),  # DRIVING_TO_CACHE
         Phase(2, model.locate_time, cache),  # LOCATING_TILE

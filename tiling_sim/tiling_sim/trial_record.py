@@ -2,10 +2,16 @@
 
 The record holds the world's truth (tiles placed and removed, with simulated times), every scan's
 judgement of every tile, the auctions and the robots' progress; the functions below turn it into
-the paper's detection statistics (removed tiles detected / undetermined; removed tiles the
-inspection last called present, the paper's "false positives", and, stricter, removed tiles any
-single scan called present; present tiles called missing, its "false negatives"), the
-allocation after detections (Table 2), a schedule per robot for the Gantt chart, and makespans.
+the paper's detection statistics, the allocation after detections (Table 2), a schedule per robot
+for the Gantt chart, and makespans.
+
+The paper counts what its scanning robot finally reported of each removed tile: "detected" (missing),
+"undetermined", or present (a "false positive"); and present tiles it reported missing ("false
+negatives"). Here the inspection's last word on a removed tile is the last verdict of a scan that saw
+it, before anyone found it missing or it was put back; a removed tile reported misplaced counts as a
+false positive too (the inspection claimed it was there). Beyond the paper: who found each removed
+tile first (inspection, whose call opened the auction, or a robot placing a tile on it), and stricter
+counts (removed tiles any single scan called present, present tiles any single scan called missing).
 """
 
 from __future__ import annotations
@@ -130,27 +136,33 @@ class RemovalOutcome:
 @dataclass
 class DetectionStats:
     removed: int = 0
-    detected: int = 0  # by inspection
-    found_by_robot: int = 0  # by a robot placing a tile on it, before inspection did
-    undetermined: int = 0  # by neither
-    left_present: int = 0  # removals inspection did not find whose last judgement was present (the
-    # paper's false positives: the inspection's final word on a removed tile was "present")
-    missing_called_present: int = 0  # removals some single scan called present (stricter than the paper)
-    present_called_missing: int = 0  # auctions for tiles that were there (the paper's false negatives)
+    # the paper's figures: the inspection's last word on each removed tile
+    reported_missing: int = 0  # "detected"
+    reported_nothing: int = 0  # "undetermined": no scan saw it, or only undetermined
+    left_present: int = 0  # "false positives": last reported present (or misplaced)
+    present_called_missing: int = 0  # "false negatives": auctions opened for tiles that were there
+    # who found each removed tile first
+    detected: int = 0  # inspection: its call opened the auction
+    found_by_robot: int = 0  # a robot placing a tile on it, before inspection did
+    undetermined: int = 0  # nobody
+    # stricter than the paper
+    missing_called_present: int = 0  # removals some single scan called present
+    present_tiles_called_missing: int = 0  # (tile, stay in place) some single scan called missing
     present_judgements: int = 0  # (present tile, scan) pairs judged
     present_judged_missing: int = 0  # of those, called missing
     detection_delays: list[float] = field(default_factory=list)  # s of simulated time to the first finding
-    by_type: dict[str, list[int]] = field(default_factory=dict)  # type -> [removed, found by anyone]
+    by_type: dict[str, list[int]] = field(default_factory=dict)  # type -> [removed, reported missing, found]
 
     def add(self, other: DetectionStats) -> None:
-        for name in ("removed", "detected", "found_by_robot", "undetermined", "left_present", "missing_called_present",
-                     "present_called_missing", "present_judgements", "present_judged_missing"):
+        for name in ("removed", "reported_missing", "reported_nothing", "left_present", "present_called_missing",
+                     "detected", "found_by_robot", "undetermined", "missing_called_present",
+                     "present_tiles_called_missing", "present_judgements", "present_judged_missing"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.detection_delays += other.detection_delays
-        for type_name, (removed, detected) in other.by_type.items():
-            mine = self.by_type.setdefault(type_name, [0, 0])
-            mine[0] += removed
-            mine[1] += detected
+        for type_name, counts in other.by_type.items():
+            mine = self.by_type.setdefault(type_name, [0] * len(counts))
+            for k, count in enumerate(counts):
+                mine[k] += count
 
 
 def _first_announcement(record: TrialRecord, tile: int, reason: int, start: float, stop: float) -> float | None:
@@ -181,11 +193,18 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
     intervals = record.presence_intervals()
     for outcome in removal_outcomes(record):
         stats.removed += 1
-        per_type = stats.by_type.setdefault(record.tile_types.get(outcome.tile, "?"), [0, 0])
+        per_type = stats.by_type.setdefault(record.tile_types.get(outcome.tile, "?"), [0, 0, 0])
         per_type[0] += 1
+        if outcome.detected_at is not None or outcome.last_judged == MISSING:
+            stats.reported_missing += 1
+            per_type[1] += 1
+        elif outcome.last_judged in (PRESENT, MISPLACED):
+            stats.left_present += 1
+        else:
+            stats.reported_nothing += 1
         found = [t for t in (outcome.detected_at, outcome.found_by_robot_at) if t is not None]
         if found:
-            per_type[1] += 1
+            per_type[2] += 1
             stats.detection_delays.append(min(found) - outcome.removed_at)
         if outcome.detected_at is not None:
             stats.detected += 1
@@ -195,16 +214,19 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
             stats.undetermined += 1
         if outcome.called_present:
             stats.missing_called_present += 1
-        if outcome.detected_at is None and outcome.last_judged == PRESENT:
-            stats.left_present += 1
     for announcement in record.announcements:
         if announcement.reason == REASON_MISSING and record.present_at(announcement.tile, announcement.t, intervals):
             stats.present_called_missing += 1
+    called_missing: set[tuple[int, float]] = set()
     for scan in record.scans:
         for tile, state in scan.states.items():
             if tile in scan.fresh and record.present_at(tile, scan.t, intervals):
                 stats.present_judgements += 1
                 stats.present_judged_missing += state == MISSING
+                if state == MISSING:
+                    stay = next(a for a, b in intervals[tile] if a <= scan.t < b)
+                    called_missing.add((tile, stay))
+    stats.present_tiles_called_missing = len(called_missing)
     return stats
 
 

@@ -28,9 +28,9 @@ import rclpy
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
-from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.task import Future
@@ -43,6 +43,8 @@ from tiling_assembly.geometry import (
     rotation_from_quaternion,
     rpy_from_rotation,
 )
+from tiling_assembly.polygons import convex_hull_2d
+from tiling_assembly.spinning import spin_until_shutdown
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo, PlaceTile
@@ -82,7 +84,13 @@ class SimWorld(Node):
             locate_time=p("locate_time").value, pick_time=p("pick_time").value,
             place_time=p("place_time").value, retreat_time=p("retreat_time").value,
             approach_distance=p("approach_distance").value,
+            base_size=tuple(float(v) for v in p("robot_size").value[:2]),
+            base_clearance=p("base_clearance").value,
         )
+        if self.motion.base_clearance < 0:
+            raise ValueError("base_clearance must not be negative")
+        # where a base may not stand: on any tile of the structure, placed or not
+        self.footprints = [convex_hull_2d(tile.vertices[:, :2]) for tile in self.structure.tiles.values()]
         self.real_time_factor = float(p("real_time_factor").value)
         self.clock_step = float(p("clock_step").value)
         if self.real_time_factor <= 0 or self.clock_step <= 0:
@@ -150,7 +158,8 @@ class SimWorld(Node):
         self.scanner = self._make_scanner()
         self.scan_pool = ThreadPoolExecutor(max_workers=1)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(self.clock_step, self.tick, clock=steady, callback_group=group)
+        # one tick at a time: a scan must carry the time of the world it shows
+        self.create_timer(self.clock_step, self.tick, clock=steady, callback_group=MutuallyExclusiveCallbackGroup())
         self.create_subscription(Empty, "/sim/start", self.on_start, EVENTS)
         self.event("started", robots=self.robots, structure=self.structure.name,
                    removal_times=[round(t, 1) for t in self.faults.removal_times])
@@ -177,7 +186,9 @@ class SimWorld(Node):
         declare("pick_time", 6.0, "s to pick a tile.")
         declare("place_time", 10.0, "s to place a tile.")
         declare("retreat_time", 2.0, "s to back off after placing.")
-        declare("approach_distance", 0.25, "m from a tile's centre to where the base stops to place it.")
+        declare("approach_distance", 0.25, "m from a tile's centre to where the base stops to place it "
+                "(further out if the base would stand on the structure).")
+        declare("base_clearance", 0.03, "m an assembly robot's base keeps from every tile of the structure.")
         declare("wait_for_start", False, "Hold simulated time at 0 until a message on /sim/start.")
         declare("seed", 1, "Seed of every random choice of the world (faults, localization errors, noise).")
         declare("removals", 0, "Tiles to remove during the build.")
@@ -293,7 +304,9 @@ class SimWorld(Node):
                 return result
             self.event("place_started", tile=goal.tile_id, robot=robot)
             tile_xy = (goal.pose.pose.position.x, goal.pose.pose.position.y)
-            phases = placement_phases(self.motion, self.positions[robot], (goal.cache.x, goal.cache.y), tile_xy)
+            phases = placement_phases(
+                self.motion, self.positions[robot], (goal.cache.x, goal.cache.y), tile_xy, self.footprints
+            )
             for phase in phases:
                 feedback = PlaceTile.Feedback(phase=phase.phase, phase_progress=0.0)
                 feedback.robot_pose = self.overhead_pose(robot)
@@ -387,7 +400,7 @@ class SimWorld(Node):
             robots = [] if not self.robots_in_view else [
                 ClutterBox((x, y, self.robot_size[2] / 2), self.robot_size) for x, y in self.positions.values()
             ]
-        stamp = self.stamp()
+            stamp = self.stamp()
         self.overhead_pubs["vi"].publish(self.overhead_pose("vi"))
         x, y, yaw = self.vi_pose
         pose = camera_pose(x, y, yaw, *self.camera_mount)
@@ -404,9 +417,11 @@ class SimWorld(Node):
             msg.header.frame_id = "camera_depth_optical_frame"
             msg.fields = [PointField(name=n, offset=o, datatype=d, count=c) for n, o, d, c in cloud_fields()]
             msg.data = cloud_bytes(cloud)
-            self.cloud_pub.publish(msg)
+            if self.context.ok():  # not shut down while the frame was rendered
+                self.cloud_pub.publish(msg)
         except Exception as error:
-            self.get_logger().error(f"Kinect simulation failed: {error}")
+            if self.context.ok():
+                self.get_logger().error(f"Kinect simulation failed: {error}")
         finally:
             self.scan_pending = False
 
@@ -425,12 +440,9 @@ def main(args: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         return 2
     try:
-        executor = MultiThreadedExecutor(num_threads=3)
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_until_shutdown(node, MultiThreadedExecutor(num_threads=3))
     finally:
+        node.scan_pool.shutdown(wait=True, cancel_futures=True)
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

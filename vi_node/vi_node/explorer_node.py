@@ -19,13 +19,13 @@ import rclpy
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionClient
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tiling_assembly.geometry import quaternion_from_rotation, rotation_from_rpy
 from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.scan_freshness import RepeatFilter
+from tiling_assembly.spinning import spin_until_shutdown
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo
@@ -228,9 +228,7 @@ def main(args: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         return 2
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_until_shutdown(node)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

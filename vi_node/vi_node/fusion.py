@@ -6,7 +6,9 @@ it. Tiles can be removed while the structure is built: when a scan's own pixels 
 other way than the fused decision (most of them see through a tile fused present, or agree with a
 tile fused missing), even too few of them to decide alone, the old evidence is dropped and the new
 scan counts alone: the tile is undetermined until new views decide it (a tile
-seen present and later seen missing is reported missing, and not present in between). A scan that
+seen present and later seen missing is reported missing, and not present in between). A present
+verdict also needs the latest view not to be split: when a scan's pixels of the tile lean neither way,
+the older views do not vouch for it and it is undetermined until a view settles it. A scan that
 glimpses a decided tile with too few pixels to lean either way leaves it as it is: its stale decision
 is not reported as a new observation. A tile that is (re)placed starts afresh. A tile found
 misplaced stays so until a scan sees it present and in place.
@@ -93,6 +95,10 @@ class TileFusion:
                 fused.evidence = fused.evidence + mine
                 fused.largest_view = max(fused.largest_view, int(mine.judged[0]))
                 fused.state = self._decide(fused)
+                if fused.state == TileState.PRESENT and self._split(mine):
+                    # older views must not vouch for a tile this view finds half gone: it may have just
+                    # been taken away (or the view is off); undetermined until a view settles it
+                    fused.state = TileState.OCCLUDED
             fused.scans += int(mine.virtual[0] > 0)
             if misplacement and tile_id in misplacement:
                 flagged, offset, residual = misplacement[tile_id]
@@ -114,6 +120,10 @@ class TileFusion:
         if agree >= self.settings.present_fraction * observed:
             return TileState.PRESENT
         return None
+
+    def _split(self, evidence: TileEvidence) -> bool:
+        """A scan saw enough of the tile to lean, but its pixels lean neither way."""
+        return int(evidence.observed[0]) >= MIN_LEANING_PIXELS and self._leaning(evidence) is None
 
     def _decide(self, fused: FusedTile) -> TileState:
         """The evidence summed over the views, with "enough of the tile seen" measured against the

@@ -17,6 +17,7 @@ camera is faster than the inspection can be on a bad day: old scans are dropped,
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from typing import Any
 
@@ -26,7 +27,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
@@ -35,6 +36,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from tiling_assembly.geometry import PlacedTile, quaternion_from_rotation
 from tiling_assembly.messages import structure_from_msg
+from tiling_assembly.spinning import spin_until_shutdown
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
@@ -97,6 +99,8 @@ class ViNode(Node):
         self.poses = PoseBuffer()
         self.pending: PointCloud2 | None = None
         self.pending_since = 0.0
+        self.inspecting = threading.Lock()  # held while a scan is inspected and its results published
+        self.closing = False
 
         scans = MutuallyExclusiveCallbackGroup()
         state = MutuallyExclusiveCallbackGroup()
@@ -239,7 +243,17 @@ class ViNode(Node):
         self.pending = msg
         self.pending_since = time.monotonic()
 
+    def stop_inspecting(self) -> None:
+        """Let the scan being inspected finish, then take no more (before the node is destroyed)."""
+        with self.inspecting:
+            self.closing = True
+
     def _process_pending(self) -> None:
+        with self.inspecting:
+            if not self.closing and self.context.ok():
+                self._process_pending_scan()
+
+    def _process_pending_scan(self) -> None:
         msg = self.pending
         if msg is None:
             return
@@ -289,6 +303,8 @@ class ViNode(Node):
             return
         if self.settings.fuse_scans:
             result = fuse_scan(self.fusion, result)
+        if not self.context.ok():  # shut down while this scan was inspected
+            return
         self.states_pub.publish(self._states_msg(msg, result))
         self.markers_pub.publish(self._markers_msg(msg, result))
         self._diagnose(DiagnosticStatus.OK, f"classified {len(result.tiles)} tiles", result)
@@ -385,14 +401,10 @@ def main(args: list[str] | None = None) -> int:
         print(f"error: {error}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    executor = MultiThreadedExecutor(num_threads=2)
-    executor.add_node(node)
     try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_until_shutdown(node, MultiThreadedExecutor(num_threads=2))
     finally:
-        executor.shutdown()
+        node.stop_inspecting()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
