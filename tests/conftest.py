@@ -1,4 +1,4 @@
-"""Shared test set-up: an isolated ROS 2 domain per test session, and paths.
+"""Shared test set-up: an isolated ROS 2 domain per test session, paths, and node processes.
 
 Every test session claims a ROS_DOMAIN_ID of its own (a lock file per domain id, held for the
 session) and keeps discovery on this host, so parallel sessions on one machine never cross-talk.
@@ -8,6 +8,8 @@ The variables are set at import time so that every process a test starts inherit
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -32,3 +34,21 @@ def pytest_report_header(config: pytest.Config) -> str:
 @pytest.fixture(scope="session")
 def ros_domain_id() -> int:
     return _DOMAIN_ID
+
+
+def ros2_command() -> str:
+    """The real `ros2` where there is one, else the workspace's minimal `ros2 run`."""
+    if any((Path(p) / "ros2").exists() for p in os.environ.get("PATH", "").split(os.pathsep)):
+        return "ros2"
+    return str(REPO / "tools" / "ros2")
+
+
+def stop_node_process(process: subprocess.Popen[str]) -> str:
+    """Ctrl-C a node started by a test (killed if it does not stop within 10 s); its output."""
+    process.send_signal(signal.SIGINT)
+    try:
+        output, _ = process.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        output, _ = process.communicate()
+    return output or ""

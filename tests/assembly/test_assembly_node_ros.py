@@ -4,14 +4,13 @@ says when its robot's place_tile server is reachable (the experiment starts simu
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
 import time
 from pathlib import Path
 
 import pytest
 import rclpy
+from conftest import ros2_command, stop_node_process
 from rclpy.action import ActionServer
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -28,12 +27,6 @@ pytestmark = pytest.mark.ros
 REPO = Path(__file__).resolve().parents[2]
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def ros2_command() -> str:
-    if any((Path(p) / "ros2").exists() for p in os.environ.get("PATH", "").split(os.pathsep)):
-        return "ros2"
-    return str(REPO / "tools" / "ros2")
 
 
 def test_placements_heard_before_the_structure_count() -> None:
@@ -87,11 +80,6 @@ def test_placements_heard_before_the_structure_count() -> None:
         server.destroy()
         node.destroy_node()
         rclpy.shutdown(context=context)
-        process.send_signal(signal.SIGINT)
-        try:
-            output, _ = process.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            output, _ = process.communicate()
+        output = stop_node_process(process)
     assert "Traceback" not in output, output
     assert "waits for supports" not in output, output

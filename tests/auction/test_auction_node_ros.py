@@ -4,8 +4,6 @@ unconfirmed_report_timeout if none does, so the robot that found it does not wai
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
 import time
 from collections.abc import Callable, Iterator
@@ -14,6 +12,7 @@ from typing import Any
 
 import pytest
 import rclpy
+from conftest import ros2_command, stop_node_process
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -39,12 +38,6 @@ REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, re
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 DECISIONS = QoSProfile(depth=200, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 TIMEOUT = 3.0  # s, unconfirmed_report_timeout of the node under test
-
-
-def ros2_command() -> str:
-    if any((Path(p) / "ros2").exists() for p in os.environ.get("PATH", "").split(os.pathsep)):
-        return "ros2"
-    return str(REPO / "tools" / "ros2")
 
 
 class Team:
@@ -119,12 +112,7 @@ def team() -> Iterator[tuple[Team, Any]]:
         yield team, structure
     finally:
         team.close()
-        process.send_signal(signal.SIGINT)
-        try:
-            output, _ = process.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            output, _ = process.communicate()
+        output = stop_node_process(process)
         assert "Traceback" not in output, output
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 import subprocess
 from pathlib import Path
 
 import numpy as np
+from conftest import ros2_command
 
 from tiling_assembly.structure import Structure
 from tiling_assembly.structure_file import load_structure
@@ -21,13 +21,6 @@ SCANS = REPO / "tests" / "data" / "vi_scans"
 @functools.cache
 def structure(name: str = "paper_14") -> Structure:
     return load_structure(STRUCTURES / f"{name}.yaml")
-
-
-def ros2_command() -> str:
-    """The real `ros2` where there is one, else the workspace's minimal `ros2 run`."""
-    if any((Path(p) / "ros2").exists() for p in os.environ.get("PATH", "").split(os.pathsep)):
-        return "ros2"
-    return str(REPO / "tools" / "ros2")
 
 
 def ros2_run(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
