@@ -12,7 +12,6 @@ with a traceback.
 
 from __future__ import annotations
 
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -40,13 +39,25 @@ def spin_until_shutdown(node: Node, executor: Executor | None = None) -> None:
 
 
 def stop_executor(executor: Executor, timeout: float = 5.0) -> None:
-    """Stop `executor` and wait up to `timeout` s for the callbacks still running on its threads."""
-    executor.shutdown(timeout_sec=timeout)
-    pool = getattr(executor, "_executor", None)  # a MultiThreadedExecutor's workers (not public API)
-    if not isinstance(pool, ThreadPoolExecutor):
-        return
-    workers: list[threading.Thread] = list(getattr(pool, "_threads", ()))
-    pool.shutdown(wait=False, cancel_futures=True)
+    """Stop `executor` and wait up to `timeout` s for the callbacks still running on its threads.
+
+    Two private parts of rclpy Jazzy are used, each only if present: the executor's count of running
+    callbacks (what `shutdown` means to wait on), and a `MultiThreadedExecutor`'s thread pool. The
+    pool's thread list alone is not enough: a worker can start its callback before the thread that
+    created it has added it to the list.
+    """
     deadline = time.monotonic() + timeout
-    for worker in workers:
-        worker.join(max(0.0, deadline - time.monotonic()))
+    executor.shutdown(timeout_sec=timeout)
+    running = getattr(executor, "_work_tracker", None)
+
+    def wait_for_running_callbacks() -> None:
+        if running is not None and hasattr(running, "wait"):
+            running.wait(max(0.0, deadline - time.monotonic()))
+
+    wait_for_running_callbacks()
+    pool = getattr(executor, "_executor", None)
+    if isinstance(pool, ThreadPoolExecutor):
+        pool.shutdown(wait=False, cancel_futures=True)
+        for worker in list(getattr(pool, "_threads", ())):
+            worker.join(max(0.0, deadline - time.monotonic()))
+    wait_for_running_callbacks()  # a callback taken from the queue just before it was cancelled

@@ -293,6 +293,8 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     structure = Path(args.structure)
     if args.robots < 1 or args.trials < 0 or args.removals < 0 or args.real_time_factor <= 0:
         parser.error("--robots must be >= 1, --trials and --removals >= 0, --real-time-factor > 0")
+    if not Path(args.config).is_dir():
+        parser.error(f"--config {args.config}: no such folder of parameter files")
     return ExperimentConfig(
         structure_file=structure.resolve(), robots=args.robots, trials=args.trials, removals=args.removals,
         seed=args.seed, real_time_factor=args.real_time_factor,
