@@ -13,7 +13,7 @@ from typing import Any, Generic, TypeVar
 
 import rclpy
 from geometry_msgs.msg import PoseStamped
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, ShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rclpy.time import Time
@@ -58,7 +58,7 @@ class Collector(Generic[T]):
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     last = self.items[-1][1] if self.items else None
-                    raise AssertionError(f"no {what} within {timeout} s (last message: {last})")
+                    raise AssertionError(f"no {what} within {timeout} s (last message: {last}; {probe_health()})")
                 self._condition.wait(remaining)
 
 
@@ -67,20 +67,43 @@ def wait_for_future(future: Any, timeout: float, what: str) -> Any:
     deadline = time.monotonic() + timeout
     while not future.done():
         if time.monotonic() > deadline:
-            raise AssertionError(f"{what} did not complete within {timeout} s")
+            raise AssertionError(f"{what} did not complete within {timeout} s ({probe_health()})")
         time.sleep(0.02)
     return future.result()
 
 
 class RosProbe:
+    """rclpy Jazzy's executors are not safe against entities created or destroyed from another thread
+    while they wait (ros2/rclpy#1385, #1589): the wait set can meet an action client being torn down
+    and the executor's spin raises. The probe therefore keeps spinning past such an error, and the
+    entities tests are done with are destroyed only once the probe stops spinning (`retire`)."""
+
     def __init__(self) -> None:
         if not rclpy.ok():
             rclpy.init()
         self.node = Node("drivers_test_probe")
         self.executor = MultiThreadedExecutor(num_threads=2)
         self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.spin_errors: list[str] = []
+        self._retired: list[Any] = []
+        self._stopping = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stopping.is_set():
+            try:
+                self.executor.spin_once(timeout_sec=0.1)
+            except (ShutdownException, ExternalShutdownException):
+                return
+            except Exception as error:  # see the class docstring
+                if self._stopping.is_set() or not rclpy.ok():
+                    return
+                self.spin_errors.append(f"{type(error).__name__}: {error}")
+
+    def retire(self, entity: Any) -> None:
+        """Destroy `entity` (a client, subscription …) when the probe closes, not while it spins."""
+        self._retired.append(entity)
 
     def collect(self, message_type: Any, topic: str,
                 qos: QoSProfile | int = qos_profile_sensor_data) -> Collector:
@@ -101,8 +124,11 @@ class RosProbe:
         return publisher
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=2.0)
+        self._stopping.set()
         self._thread.join(timeout=2.0)
+        self.executor.shutdown(timeout_sec=2.0)
+        for entity in self._retired:
+            entity.destroy()
         self.node.destroy_node()
         rclpy.try_shutdown()
 
@@ -136,6 +162,14 @@ class OverheadCamera:
 
 
 _probe: RosProbe | None = None
+
+
+def probe_health() -> str:
+    """Whether the probe still spins, and what interrupted it: said when a wait fails."""
+    if _probe is None:
+        return "no probe"
+    alive = "spinning" if _probe._thread.is_alive() else "NOT spinning"
+    return f"probe {alive}, spin errors: {_probe.spin_errors[-3:] or 'none'}"
 
 
 def shared_probe() -> RosProbe:

@@ -187,7 +187,7 @@ def test_navigate_to_drives_the_base_to_the_goal(rig) -> None:
         assert handle.accepted
         result = wait_for_future(handle.get_result_async(), 40.0, "navigate_to").result
     finally:
-        client.destroy()
+        shared_probe().retire(client)
     assert result.success, result.message
     x, y, yaw = rig["create"].true_pose()
     assert math.hypot(x - target.x, y - target.y) < 0.03

@@ -15,7 +15,7 @@ import time
 import pytest
 from processes import Emulator, NodeProcess
 from rclpy.action import ActionClient
-from ros_probe import OverheadCamera, shared_probe
+from ros_probe import OverheadCamera, probe_health, shared_probe
 
 from hardware_drivers import dynamixel_protocol as dx
 from hardware_drivers.place_tile_mission import Outcome, Phase
@@ -60,7 +60,7 @@ def m3(tmp_path_factory: pytest.TempPathFactory):
         node.wait_for_log("connected to the", timeout=20.0)
     yield {"create": create, "arm": arm, "urg": urg, "nodes": {n.name: n for n in nodes}, "client": client}
     camera.close()
-    client.destroy()
+    shared_probe().retire(client)
     for node in nodes:
         node.stop()
     for emulator in (create, arm, urg):
@@ -86,7 +86,7 @@ def _run_goal(client: ActionClient, goal: PlaceTile.Goal, timeout: float,
     sent = client.send_goal_async(goal, feedback_callback=lambda f: feedback.append(f.feedback))
     deadline = time.monotonic() + 10.0
     while not sent.done():
-        assert time.monotonic() < deadline, "goal not accepted in time"
+        assert time.monotonic() < deadline, f"goal not accepted in time ({probe_health()})"
         time.sleep(0.02)
     handle = sent.result()
     assert handle.accepted
