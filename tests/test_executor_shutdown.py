@@ -1,15 +1,19 @@
-"""Stopping a multi-threaded executor waits for the callbacks still running on its threads."""
+"""Stopping a node waits for the callbacks still running on its executor's threads."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 import rclpy
+from conftest import stop_node_process
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
-from std_msgs.msg import Empty
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+from std_msgs.msg import Empty, String
 
 from tiling_assembly.spinning import stop_executor
 
@@ -44,4 +48,38 @@ def test_a_running_callback_finishes_before_the_node_is_destroyed() -> None:
         assert not spinner.is_alive()
     finally:
         node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_ctrl_c_lets_a_running_callback_publish_before_ros_shuts_down() -> None:
+    """rclpy's own SIGINT handler would shut the context down under the callback ("publisher's
+    context is invalid"); run_node waits for the callback first."""
+    node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "slow_callback_node.py")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    listener = rclpy.create_node("slow_callback_listener", context=context)
+    heard: list[str] = []
+    listener.create_subscription(String, "slow_callback", lambda m: heard.append(m.data), 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(listener)
+    try:
+        deadline = time.monotonic() + 20.0
+        while "started" not in heard and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert "started" in heard, "the node never ran its callback"
+        started = len(heard)
+        output = stop_node_process(node)  # the callback is now sleeping
+        deadline = time.monotonic() + 3.0
+        while "finished" not in heard[started:] and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert node.returncode == 0, output
+        assert "finished" in heard[started:], output
+        for noise in ("Traceback", "never retrieved", "context is invalid"):
+            assert noise not in output, output
+    finally:
+        if node.poll() is None:
+            node.kill()
+        executor.shutdown()
+        listener.destroy_node()
         rclpy.try_shutdown(context=context)

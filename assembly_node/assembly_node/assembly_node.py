@@ -13,7 +13,6 @@ from __future__ import annotations
 import sys
 import time
 
-import rclpy
 from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseStamped
@@ -26,7 +25,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from assembly_node.bidding import compute_bid
 from assembly_node.executor import Outcome, PlanExecutor, StepKind
 from tiling_assembly.messages import pose_of, structure_from_msg
-from tiling_assembly.spinning import spin_until_shutdown
+from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.time_model import TimeModel
@@ -380,19 +379,7 @@ class AssemblyNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = AssemblyNode()
-    except (ValueError, StructureError) as error:
-        print(f"assembly_node: {error}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin_until_shutdown(node)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(AssemblyNode, (ValueError, StructureError), args=args, error_prefix="assembly_node")
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ from auction_node.liveness import Liveness
 from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
 from tiling_assembly.messages import pose_of, structure_from_msg
 from tiling_assembly.scan_freshness import RepeatFilter
-from tiling_assembly.spinning import spin_until_shutdown
+from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly_msgs.msg import (
@@ -333,19 +333,7 @@ class AuctionNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = AuctionNode()
-    except ValueError as error:
-        print(f"auction_node: {error}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin_until_shutdown(node)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(AuctionNode, (ValueError,), args=args, error_prefix="auction_node")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import Executor, SingleThreadedExecutor
@@ -18,7 +17,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from hardware_drivers.device_health import HealthReport, Level
-from tiling_assembly.spinning import spin_until_shutdown
+from tiling_assembly import spinning
 
 DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 # REP 2003: sensor drivers publish reliable, so best-effort and reliable subscribers both connect
@@ -110,25 +109,7 @@ class DiagnosticsReporter:
 
 def run_node(make_node: Callable[[], Node], executor: Callable[[], Executor] = SingleThreadedExecutor,
              on_shutdown: Callable[[Node], None] | None = None) -> int:
-    """rclpy.init, build the node (a ParameterError: one line on stderr, exit code 2), spin until
-    Ctrl-C or shutdown, clean up. Returns the exit code."""
-    rclpy.init(args=sys.argv)
-    node: Node | None = None
-    try:
-        node = make_node()
-    except ParameterError as error:
-        print(f"error: {error}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    spinner = executor()
-    try:
-        spin_until_shutdown(node, spinner)
-    finally:
-        if on_shutdown is not None:
-            try:
-                on_shutdown(node)
-            except Exception as error:
-                print(f"{node.get_name()}: while shutting down: {error}", file=sys.stderr)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    """A driver node's whole process (`tiling_assembly.spinning.run_node`): a ParameterError is one
+    line on stderr and exit code 2. Returns the exit code."""
+    return spinning.run_node(make_node, (ParameterError,), args=sys.argv, executor=executor,
+                             on_shutdown=on_shutdown)

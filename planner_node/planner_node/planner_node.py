@@ -17,11 +17,9 @@ from __future__ import annotations
 
 import sys
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException, ParameterUninitializedException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -30,13 +28,11 @@ from planner_node.parameters import NODE_NAME, ParameterError, PlannerParameters
 from planner_node.plan_messages import plan_to_msg
 from planner_node.planner import Plan, PlanningError, plan_assembly, replan_assembly
 from tiling_assembly.messages import structure_to_msg
-from tiling_assembly.spinning import spin_until_shutdown
+from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.msg import AssemblyPlan, Structure
 from tiling_assembly_msgs.srv import Replan
-
-EXIT_BAD_INPUT = 2
 
 _DEFAULTS = PlannerParameters()
 _DESCRIPTIONS = {
@@ -189,22 +185,7 @@ class PlannerNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = PlannerNode()
-    except (StructureError, ParameterError, PlanningError, ParameterException) as error:
-        print(f"error: {error}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return EXIT_BAD_INPUT
-    except (KeyboardInterrupt, ExternalShutdownException):
-        rclpy.try_shutdown()
-        return 0
-    try:
-        spin_until_shutdown(node)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(PlannerNode, (StructureError, ParameterError, PlanningError, ParameterException), args=args)
 
 
 if __name__ == "__main__":

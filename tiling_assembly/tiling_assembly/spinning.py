@@ -1,41 +1,114 @@
-"""Spinning a node until Ctrl-C, and stopping without noise: every node process's main loop.
+"""A node process's life: start ROS, build the node, spin until Ctrl-C, stop without noise.
 
-rclpy Jazzy's `Executor.shutdown` does not wait for the callbacks still running on a
-`MultiThreadedExecutor`'s worker threads (it tests its "shut down" flag right after setting it). A
-callback still running when its node is destroyed fails ("cannot use Destroyable because destruction
-was requested"), and the failure is printed as "The following exception was never retrieved" when
-the task is collected: noise in every log at Ctrl-C. Waiting for the workers before destroying the
-node avoids it. And a callback that races the context's shutdown at Ctrl-C can fail inside rclpy
-(a take on a subscription whose context is gone): that is part of stopping, not a failure to report
-with a traceback.
+Two things in rclpy Jazzy make a plain `rclpy.init` + `spin` noisy at Ctrl-C:
+- rclpy's own SIGINT handler shuts the context down at once, while callbacks may still be running on
+  executor threads; a publish or a take from one of them then fails ("publisher's context is
+  invalid"), printed as "The following exception was never retrieved".
+- `Executor.shutdown` does not wait for the callbacks still running (it tests its "shut down" flag
+  right after setting it), so a node destroyed next fails them too ("cannot use Destroyable").
+
+So rclpy's signal handlers are not installed: Ctrl-C and SIGTERM raise KeyboardInterrupt in the main
+thread, which only waits while the executor spins in a thread of its own. The executor is then
+stopped and its running callbacks are waited for, and only after that are the node destroyed and the
+context shut down.
 """
 
 from __future__ import annotations
 
+import signal
+import sys
+import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from types import FrameType
+from typing import TypeVar
 
+import rclpy
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+NodeT = TypeVar("NodeT", bound=Node)
+
+EXIT_BAD_INPUT = 2  # a parameter, structure file or other start-up input was rejected
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
+def init_ros(args: list[str] | None = None) -> None:
+    """`rclpy.init` without rclpy's signal handlers: SIGINT and SIGTERM raise KeyboardInterrupt."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, _interrupt)  # also when the parent shell left SIGINT ignored
+    signal.signal(signal.SIGTERM, _interrupt)
+
+
+def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exception], ...] = (), *,
+             args: list[str] | None = None, executor: Callable[[], Executor] = SingleThreadedExecutor,
+             on_shutdown: Callable[[NodeT], None] | None = None, error_prefix: str = "error") -> int:
+    """Run one node for a whole process; returns the exit code.
+
+    A start-up error of the types given prints one line `<error_prefix>: <error>` on stderr and gives
+    `EXIT_BAD_INPUT`. Ctrl-C or SIGTERM stops the node (exit code 0), also during start-up. The node's
+    `on_shutdown` runs after its callbacks have finished and before it is destroyed.
+    """
+    init_ros(args)
+    try:
+        try:
+            node = make_node()
+        except startup_errors as error:
+            print(f"{error_prefix}: {error}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        try:
+            spin_until_shutdown(node, executor())
+        finally:
+            if on_shutdown is not None:
+                try:
+                    on_shutdown(node)
+                except Exception as error:
+                    print(f"{node.get_name()}: while shutting down: {error}", file=sys.stderr)
+            node.destroy_node()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        rclpy.try_shutdown()
+    return 0
 
 
 def spin_until_shutdown(node: Node, executor: Executor | None = None) -> None:
-    """Spin `node` until Ctrl-C or shutdown, then stop the executor (see `stop_executor`).
+    """Spin `node` on a thread of its own until Ctrl-C or shutdown, then stop the executor and wait
+    for its running callbacks (see `stop_executor`).
 
-    Errors raised once the context is shut down are part of stopping and are not raised; the caller
-    destroys the node and shuts rclpy down afterwards.
+    An error raised by a callback stops the spinning and is raised here, unless the context had
+    already shut down (then it is part of stopping). The caller destroys the node afterwards.
     """
     spinner = executor if executor is not None else SingleThreadedExecutor(context=node.context)
     spinner.add_node(node)
+    failures: list[Exception] = []
+
+    def spin() -> None:
+        try:
+            spinner.spin()
+        except ExternalShutdownException:
+            pass
+        except Exception as error:
+            if node.context.ok():
+                failures.append(error)
+
+    thread = threading.Thread(target=spin, name=f"{node.get_name()}_executor", daemon=True)
+    thread.start()
     try:
-        spinner.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while thread.is_alive():
+            thread.join(0.5)
+    except KeyboardInterrupt:
         pass
-    except Exception:
-        if node.context.ok():
-            raise
     finally:
         stop_executor(spinner)
+        thread.join(5.0)
+    if failures:
+        raise failures[0]
 
 
 def stop_executor(executor: Executor, timeout: float = 5.0) -> None:

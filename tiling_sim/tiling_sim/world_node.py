@@ -44,7 +44,7 @@ from tiling_assembly.geometry import (
     rpy_from_rotation,
 )
 from tiling_assembly.polygons import convex_hull_2d
-from tiling_assembly.spinning import spin_until_shutdown
+from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo, PlaceTile
@@ -432,20 +432,9 @@ def _yaw_rotation(yaw: float) -> np.ndarray:
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = SimWorld()
-    except (ValueError, StructureError) as error:
-        print(f"sim_world: {error}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin_until_shutdown(node, MultiThreadedExecutor(num_threads=3))
-    finally:
-        node.scan_pool.shutdown(wait=True, cancel_futures=True)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SimWorld, (ValueError, StructureError), args=args, error_prefix="sim_world",
+                    executor=lambda: MultiThreadedExecutor(num_threads=3),
+                    on_shutdown=lambda node: node.scan_pool.shutdown(wait=True, cancel_futures=True))
 
 
 if __name__ == "__main__":

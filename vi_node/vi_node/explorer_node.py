@@ -15,7 +15,6 @@ import math
 import sys
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionClient
@@ -25,7 +24,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from tiling_assembly.geometry import quaternion_from_rotation, rotation_from_rpy
 from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.scan_freshness import RepeatFilter
-from tiling_assembly.spinning import spin_until_shutdown
+from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo
@@ -220,19 +219,7 @@ class ExplorerNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = ExplorerNode()
-    except (ValueError, StructureError) as error:
-        print(f"vi_explorer: {error}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin_until_shutdown(node)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(ExplorerNode, (ValueError, StructureError), args=args, error_prefix="vi_explorer")
 
 
 if __name__ == "__main__":

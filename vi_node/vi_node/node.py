@@ -22,7 +22,6 @@ import time
 from typing import Any
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
@@ -36,7 +35,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from tiling_assembly.geometry import PlacedTile, quaternion_from_rotation
 from tiling_assembly.messages import structure_from_msg
-from tiling_assembly.spinning import spin_until_shutdown
+from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
@@ -394,20 +393,8 @@ class ViNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = ViNode()
-    except StartupError as error:
-        print(f"error: {error}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin_until_shutdown(node, MultiThreadedExecutor(num_threads=2))
-    finally:
-        node.stop_inspecting()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(ViNode, (StartupError,), args=args, executor=lambda: MultiThreadedExecutor(num_threads=2),
+                    on_shutdown=ViNode.stop_inspecting)
 
 
 if __name__ == "__main__":
