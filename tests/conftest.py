@@ -44,11 +44,16 @@ def ros2_command() -> str:
 
 
 def stop_node_process(process: subprocess.Popen[str]) -> str:
-    """Ctrl-C a node started by a test (killed if it does not stop within 10 s); its output."""
+    """Ctrl-C a node started by a test and check that it stopped cleanly (exit code 0 within 10 s,
+    no traceback, no abort); its output."""
     process.send_signal(signal.SIGINT)
     try:
         output, _ = process.communicate(timeout=10)
     except subprocess.TimeoutExpired:
         process.kill()
         output, _ = process.communicate()
-    return output or ""
+    output = output or ""
+    assert process.returncode == 0, f"the node exited with {process.returncode} at Ctrl-C:\n{output[-3000:]}"
+    for noise in ("Traceback", "terminate called"):
+        assert noise not in output, output[-3000:]
+    return output

@@ -15,7 +15,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from std_msgs.msg import Empty, String
 
-from tiling_assembly.spinning import stop_executor
+from tiling_assembly.spinning import Spinner
 
 pytestmark = pytest.mark.ros
 
@@ -36,16 +36,13 @@ def test_a_running_callback_finishes_before_the_node_is_destroyed() -> None:
         finished.set()
 
     node.create_timer(0.01, slow, callback_group=ReentrantCallbackGroup())
-    executor = MultiThreadedExecutor(num_threads=2, context=context)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin)
+    spinner = Spinner(node, MultiThreadedExecutor(num_threads=2, context=context))
     spinner.start()
     try:
         assert started.wait(10.0)
-        stop_executor(executor)
+        assert spinner.stop()
         assert finished.is_set()  # rclpy's own shutdown returns while the callback still sleeps
-        spinner.join(5.0)
-        assert not spinner.is_alive()
+        assert spinner.failure is None
     finally:
         node.destroy_node()
         rclpy.try_shutdown(context=context)

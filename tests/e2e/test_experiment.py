@@ -21,12 +21,12 @@ from conftest import REPO, STRUCTURES
 
 
 def run_experiment(
-    report: Path, *args: str, timeout: float = 240.0
+    report: Path, *args: str, timeout: float = 240.0, real_time_factor: float = 30.0
 ) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
     command = [
         str(REPO / "install/tiling_sim/lib/tiling_sim/experiment"),
         "--structure", str(STRUCTURES / "paper_14.yaml"), "--report", str(report), "--quiet",
-        "--real-time-factor", "30", "--no-baseline", *args,
+        "--real-time-factor", str(real_time_factor), "--no-baseline", *args,
     ]
     result = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=timeout)
     results_file = report / "results.json"
@@ -43,8 +43,10 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 def config_with(folder: Path, package: str, **parameters: object) -> Path:
-    """A copy of the product's parameter files with some of one node's parameters changed."""
-    shutil.copytree(REPO / "config", folder)
+    """A copy of the product's parameter files (made unless `folder` exists) with some of one node's
+    parameters changed."""
+    if not folder.exists():
+        shutil.copytree(REPO / "config", folder)
     path = folder / f"{package}.yaml"
     document = yaml.safe_load(path.read_text())
     document["/**"]["ros__parameters"].update(parameters)
@@ -54,15 +56,20 @@ def config_with(folder: Path, package: str, **parameters: object) -> Path:
 
 def _only_trial(data: dict) -> dict:  # type: ignore[type-arg]
     (trial,) = data["trials"]
+    assert trial["unclean_exits"] == {}, "nodes that did not stop cleanly at Ctrl-C"
     return trial
 
 
 def test_removed_tile_is_detected_auctioned_and_replaced(experiment, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     # The robot that finds the tile's support gone waits for a scan far longer than inspection needs
-    # (about 55 s here), so the auction is opened by the scan and never by the robot's report timing out.
+    # (20-60 s here), so the auction is opened by a scan and never by the robot's report timing out.
+    # The assembly robots are kept out of the Kinect's view: standing beside the structure, they hide
+    # enough of it that in about half of these one-trial runs no scan aligns at all (a known weakness
+    # of the alignment, measured in the issue-6 note); this test is about what follows a detection.
     config = config_with(tmp_path / "config", "auction_node", unconfirmed_report_timeout=600.0)
+    config_with(config, "tiling_sim", robots_in_view=False)
     result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3", "--inspection-only",
-                              "--config", str(config))
+                              "--config", str(config), real_time_factor=20.0)
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
     trial = _only_trial(data)
     assert trial["complete"] and trial["removed"] == 1 and trial["detected"] == 1

@@ -68,3 +68,16 @@ def test_kill_stops_one_process_at_once(tmp_path: Path) -> None:
         assert group.dead() == ["a"]
         sessions = group.pids()
     assert _wait_gone(sessions) == []
+
+
+def test_stop_reports_the_processes_that_did_not_exit_cleanly(tmp_path: Path) -> None:
+    def on_ctrl_c(action: str) -> list[str]:
+        return [sys.executable, "-c", f"import os, time\ntry:\n time.sleep(60)\nexcept KeyboardInterrupt:\n {action}"]
+
+    group = ProcessGroup(log_dir=tmp_path)
+    group.start("clean", on_ctrl_c("pass"))
+    group.start("crashes", on_ctrl_c("os.abort()"))
+    group.start("deaf", ["bash", "-c", "trap '' INT; sleep 60"])
+    group.start("gone", ["true"])
+    time.sleep(0.5)
+    assert group.stop(grace=1.0) == {"crashes": -signal.SIGABRT, "deaf": -signal.SIGTERM}

@@ -8,9 +8,9 @@ Two things in rclpy Jazzy make a plain `rclpy.init` + `spin` noisy at Ctrl-C:
   right after setting it), so a node destroyed next fails them too ("cannot use Destroyable").
 
 So rclpy's signal handlers are not installed: Ctrl-C and SIGTERM raise KeyboardInterrupt in the main
-thread, which only waits while the executor spins in a thread of its own. The executor is then
-stopped and its running callbacks are waited for, and only after that are the node destroyed and the
-context shut down.
+thread, which only waits while the executor spins in a thread of its own (`Spinner`). The spinning
+then ends, the running callbacks are waited for, and only after that are the executor shut down, the
+node destroyed and the context shut down.
 """
 
 from __future__ import annotations
@@ -78,59 +78,88 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
 
 
 def spin_until_shutdown(node: Node, executor: Executor | None = None) -> None:
-    """Spin `node` on a thread of its own until Ctrl-C or shutdown, then stop the executor and wait
-    for its running callbacks (see `stop_executor`).
+    """Spin `node` on a thread of its own until Ctrl-C or the context's shutdown, then stop the
+    executor and wait for its running callbacks (`Spinner`).
 
     An error raised by a callback stops the spinning and is raised here, unless the context had
     already shut down (then it is part of stopping). The caller destroys the node afterwards.
     """
-    spinner = executor if executor is not None else SingleThreadedExecutor(context=node.context)
-    spinner.add_node(node)
-    failures: list[Exception] = []
-
-    def spin() -> None:
-        try:
-            spinner.spin()
-        except ExternalShutdownException:
-            pass
-        except Exception as error:
-            if node.context.ok():
-                failures.append(error)
-
-    thread = threading.Thread(target=spin, name=f"{node.get_name()}_executor", daemon=True)
-    thread.start()
+    spinner = Spinner(node, executor)
+    spinner.start()
     try:
-        while thread.is_alive():
-            thread.join(0.5)
+        spinner.wait()
     except KeyboardInterrupt:
         pass
     finally:
-        stop_executor(spinner)
-        thread.join(5.0)
-    if failures:
-        raise failures[0]
+        if not spinner.stop():
+            print(f"{node.get_name()}: a callback was still running 5 s after the stop; exiting anyway",
+                  file=sys.stderr)
+    if spinner.failure is not None:
+        raise spinner.failure
 
 
-def stop_executor(executor: Executor, timeout: float = 5.0) -> None:
-    """Stop `executor` and wait up to `timeout` s for the callbacks still running on its threads.
+class Spinner:
+    """An executor spun by a loop of our own on a background thread, so that stopping can first end
+    the loop, then wait for the callbacks still running, and only then shut the executor down.
 
-    Two private parts of rclpy Jazzy are used, each only if present: the executor's count of running
-    callbacks (what `shutdown` means to wait on), and a `MultiThreadedExecutor`'s thread pool. The
-    pool's thread list alone is not enough: a worker can start its callback before the thread that
-    created it has added it to the list.
+    rclpy's `Executor.shutdown` called while another thread spins destroys the executor's guard
+    condition under a callback that is about to trigger it ("cannot use Destroyable"), and does not
+    wait for running callbacks. Two private parts of rclpy Jazzy are used to wait, each only if
+    present: the executor's count of running callbacks and a `MultiThreadedExecutor`'s thread pool
+    (whose thread list alone is not enough: a worker can start its callback before it is listed).
     """
-    deadline = time.monotonic() + timeout
-    executor.shutdown(timeout_sec=timeout)
-    running = getattr(executor, "_work_tracker", None)
 
-    def wait_for_running_callbacks() -> None:
-        if running is not None and hasattr(running, "wait"):
-            running.wait(max(0.0, deadline - time.monotonic()))
+    POLL = 0.1  # s; how long one spin_once may wait, hence how quickly a stop is noticed
 
-    wait_for_running_callbacks()
-    pool = getattr(executor, "_executor", None)
-    if isinstance(pool, ThreadPoolExecutor):
-        pool.shutdown(wait=False, cancel_futures=True)
-        for worker in list(getattr(pool, "_threads", ())):
-            worker.join(max(0.0, deadline - time.monotonic()))
-    wait_for_running_callbacks()  # a callback taken from the queue just before it was cancelled
+    def __init__(self, node: Node, executor: Executor | None = None) -> None:
+        self.node = node
+        self.executor = executor if executor is not None else SingleThreadedExecutor(context=node.context)
+        self.executor.add_node(node)
+        self.failure: Exception | None = None
+        self._stopping = threading.Event()
+        # Waited on instead of the thread: in Python 3.11 a Thread.join interrupted by Ctrl-C marks
+        # the thread stopped while it still runs, and a thread still in rclpy at exit aborts the process.
+        self._loop_ended = threading.Event()
+
+    def start(self) -> None:
+        threading.Thread(target=self._loop, name=f"{self.node.get_name()}_executor", daemon=True).start()
+
+    def _loop(self) -> None:
+        try:
+            while not self._stopping.is_set() and self.node.context.ok():
+                self.executor.spin_once(timeout_sec=self.POLL)
+        except ExternalShutdownException:
+            pass
+        except Exception as error:
+            if self.node.context.ok():
+                self.failure = error
+        finally:
+            self._loop_ended.set()
+
+    def wait(self) -> None:
+        """Until the loop ends (the context shut down, or a callback failed); Ctrl-C interrupts it."""
+        while not self._loop_ended.wait(0.5):
+            pass
+
+    def stop(self, timeout: float = 5.0) -> bool:
+        """End the loop, wait up to `timeout` s for running callbacks, shut the executor down.
+        False if some callback was still running at the deadline."""
+        deadline = time.monotonic() + timeout
+        self._stopping.set()
+        finished = self._loop_ended.wait(timeout)
+        running = getattr(self.executor, "_work_tracker", None)
+
+        def wait_for_running_callbacks() -> bool:
+            if running is None or not hasattr(running, "wait"):
+                return True
+            return bool(running.wait(max(0.0, deadline - time.monotonic())))
+
+        finished = wait_for_running_callbacks() and finished
+        pool = getattr(self.executor, "_executor", None)
+        if isinstance(pool, ThreadPoolExecutor):
+            pool.shutdown(wait=False, cancel_futures=True)
+            for worker in list(getattr(pool, "_threads", ())):
+                worker.join(max(0.0, deadline - time.monotonic()))
+            finished = wait_for_running_callbacks() and finished  # one taken just before the cancel
+        self.executor.shutdown(timeout_sec=0)
+        return finished

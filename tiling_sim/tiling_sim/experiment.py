@@ -228,6 +228,10 @@ class Experiment:
                     break
             executor.remove_node(observer)
             observer.destroy_node()
+            record.unclean_exits = group.stop()
+        for name, code in record.unclean_exits.items():
+            print(f"warning: trial {setup.trial}: {name} did not stop cleanly (exit code {code}); see "
+                  f"{logs / (name + '.log')}", file=sys.stderr, flush=True)
         return record
 
     def show(self, line: str) -> None:

@@ -91,8 +91,12 @@ class ProcessGroup:
         _signal_group(process.popen.pid, signal.SIGKILL)
         process.popen.wait()
 
-    def stop(self, grace: float = 5.0) -> None:
-        """Stop every process: SIGINT, then SIGTERM, then SIGKILL; wait for all of them."""
+    def stop(self, grace: float = 5.0) -> dict[str, int]:
+        """Stop every process: SIGINT, then SIGTERM, then SIGKILL; wait for all of them.
+
+        Returns the exit code of every process that was still running and did not exit cleanly
+        (0) when asked: a node that needed SIGTERM or SIGKILL, or crashed on its way out."""
+        asked = [name for name, p in self.processes.items() if p.alive()]
         for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
             running = [p for p in self.processes.values() if p.alive()]
             if not running:
@@ -111,7 +115,9 @@ class ProcessGroup:
                 pass
             if process.log_file is not None:
                 process.log_file.close()
+        codes = {name: self.processes[name].popen.returncode for name in asked}
         self.processes.clear()
+        return {name: code for name, code in codes.items() if code != 0}
 
     def __enter__(self) -> ProcessGroup:
         return self

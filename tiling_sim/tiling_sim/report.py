@@ -160,6 +160,8 @@ def summary_text(result: ExperimentResult) -> str:
     for record in result.records:
         if not record.complete():
             lines.append(f"  trial {record.trial}: {record.failure or 'did not finish in time'}")
+    unclean = [f"trial {r.trial} {name} ({code})" for r in result.records for name, code in r.unclean_exits.items()]
+    lines.append(f"Nodes that did not stop cleanly at the end of a trial (exit code): {', '.join(unclean) or 'none'}")
     lines += makespan_lines(result)
     return "\n".join(lines)
 
@@ -266,6 +268,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
         trials.append({
             "trial": record.trial, "seed": record.seed, "complete": record.complete(),
             "failure": record.failure, "timed_out": record.timed_out, "makespan": record.makespan(),
+            "unclean_exits": record.unclean_exits,
             "removed": stats.removed, "reported_missing": stats.reported_missing,
             "reported_nothing": stats.reported_nothing, "left_present": stats.left_present,
             "detected": stats.detected, "found_by_robot": stats.found_by_robot,

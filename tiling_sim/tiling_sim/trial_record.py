@@ -93,6 +93,7 @@ class TrialRecord:
     completed_at: float | None = None
     timed_out: bool = False
     failure: str = ""
+    unclean_exits: dict[str, int] = field(default_factory=dict)  # node -> exit code when stopped
     final_states: dict[int, str] = field(default_factory=dict)
 
     # --- truth -------------------------------------------------------------------------------
