@@ -110,12 +110,9 @@ class ViNode(Node):
             depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
         )
         self.create_subscription(Structure, "/structure", self._on_structure, latched, callback_group=state)
-        # The robots keep their reports for late joiners: a scan judged against an S_a missing the
-        # first placements (heard before this subscription matched) could never align.
-        reports = QoSProfile(
-            depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+        self.create_subscription(
+            PlacementReport, "/placement_reports", self._on_report, 100, callback_group=state
         )
-        self.create_subscription(PlacementReport, "/placement_reports", self._on_report, reports, callback_group=state)
         self.create_subscription(
             AuctionAnnouncement, "/auction/announcements", self._on_announcement, 50, callback_group=state
         )
