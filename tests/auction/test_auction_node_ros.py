@@ -112,8 +112,7 @@ def team() -> Iterator[tuple[Team, Any]]:
         yield team, structure
     finally:
         team.close()
-        output = stop_node_process(process)
-        assert "Traceback" not in output, output
+        stop_node_process(process)  # checks it stopped cleanly, without a traceback
 
 
 def test_a_report_no_scan_confirms_is_acted_on_after_the_timeout(team: tuple[Team, Any]) -> None:
