@@ -151,8 +151,7 @@ def test_bad_scans_in_a_bag_are_reported_and_skipped(tmp_path: Path) -> None:
 def read_vga_cloud() -> np.ndarray:
     from vi_node.classify_bag import read_recording
 
-    _, scans = read_recording(SCANS / "paper_vga")
-    return next(iter(scans)).cloud  # type: ignore[return-value]
+    return next(iter(read_recording(SCANS / "paper_vga").scans)).cloud  # type: ignore[return-value]
 
 
 def test_reads_sqlite3_bags_with_a_driver_style_cloud_layout(tmp_path: Path) -> None:

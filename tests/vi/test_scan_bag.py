@@ -63,8 +63,8 @@ def test_recorded_test_scans_are_small_and_complete() -> None:
     total = sum(f.stat().st_size for f in SCANS.rglob("*") if f.is_file())
     assert total < 5e6
     for name, size, count in (("paper_vga", (480, 640), 2), ("paper_qvga", (240, 320), 4)):
-        poses, scans = read_recording(SCANS / name)
-        clouds = [s.cloud for s in scans]
-        assert len(clouds) == count and len(poses) == count
+        recording = read_recording(SCANS / name)
+        clouds = [s.cloud for s in recording.scans]
+        assert len(clouds) == count and len(recording.poses) == count and not recording.team.buffers
         assert all(c is not None and c.shape == (*size, 3) for c in clouds)
         assert len(read_truth(SCANS / name)["scans"]) == count

@@ -2,9 +2,13 @@
 tiles removed (and optionally misplaced), a VI robot looking at it from around, and overhead
 localization with the paper's errors (up to 5 cm and 10 degrees).
 
-A scene is the physical world (S_p, with clutter) plus what the system expects (S_a, the tiles
-claimed placed); a view is where the VI robot really is, how its base sits on the floor, and what
-the overhead cameras report. The Kinect simulator turns a scene and a view into a cloud.
+A scene is the physical world (S_p, with clutter and other robots) plus what the system expects
+(S_a, the tiles claimed placed); a view is where the VI robot really is, how its base sits on the
+floor, and what the overhead cameras report of it and of the other robots. The Kinect simulator
+turns a scene and a view into a cloud. A `Condition` names what the world varies for a set of
+scenes (camera mount and its calibration error, distances, the base rocking, localization errors at
+their bounds, robots beside the structure or right in front of the camera, grazing dropouts), so
+that the inspection is measured per condition (`vi_accuracy`).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from numpy.typing import NDArray
 
 from tiling_assembly.contacts import separation
 from tiling_assembly.geometry import PlacedTile, rotation_from_rpy
+from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure import Structure
 from tiling_sim.kinect import ClutterBox, KinectScene, camera_pose
 
@@ -55,7 +60,7 @@ class ViewSettings:
     position_error: float = 0.05  # m, overhead position error, up to (uniform over the disc)
     yaw_error: float = math.radians(10.0)  # overhead yaw error, up to (uniform)
     errors_at_bound: bool = False  # True: every overhead error exactly position_error and +-yaw_error
-    mount_xyz: tuple[float, float, float] = MOUNT_XYZ
+    mount_xyz: tuple[float, float, float] = MOUNT_XYZ  # the true mount (the inspection may be told another)
     mount_rpy: tuple[float, float, float] = MOUNT_RPY
 
 
@@ -70,6 +75,7 @@ class View:
     tilt: tuple[float, float, float]  # true base z, roll, pitch
     overhead: tuple[float, float, float]  # reported x, y, yaw
     settings: ViewSettings = DEFAULT_VIEW
+    robots: tuple[tuple[float, float, float], ...] = ()  # reported x, y, yaw of the other robots
 
     @cached_property
     def camera(self) -> Array:
@@ -77,12 +83,13 @@ class View:
         z, roll, pitch = self.tilt
         return camera_pose(*self.base, self.settings.mount_xyz, self.settings.mount_rpy, z, roll, pitch)
 
-    def to_dict(self) -> dict[str, list[float]]:
+    def to_dict(self) -> dict[str, object]:
         return {
             "base": list(self.base),
             "tilt": list(self.tilt),
             "overhead": list(self.overhead),
             "camera": np.asarray(self.camera).round(6).tolist(),
+            "robots": [list(r) for r in self.robots],
         }
 
 
@@ -95,6 +102,7 @@ class Scene:
     removed: tuple[int, ...]  # claimed placed but physically gone
     misplaced: dict[int, PlacedTile] = field(default_factory=dict)  # claimed placed, physically elsewhere
     clutter: tuple[ClutterBox | PlacedTile, ...] = ()
+    robots: tuple[ClutterBox, ...] = ()  # other robots: the overhead cameras report these
 
     @property
     def present(self) -> tuple[int, ...]:
@@ -104,7 +112,7 @@ class Scene:
     @cached_property
     def kinect_scene(self) -> KinectScene:
         tiles = [self.structure.tiles[i] for i in self.present] + list(self.misplaced.values())
-        return KinectScene(tiles, self.clutter)
+        return KinectScene(tiles, (*self.clutter, *self.robots))
 
     @property
     def centre(self) -> Array:
@@ -250,16 +258,31 @@ def view_from(
     distance: float,
     rng: np.random.Generator,
     settings: ViewSettings = DEFAULT_VIEW,
+    robots: tuple[ClutterBox, ...] = (),
 ) -> View:
-    """The VI robot at `distance` from `centre` on `bearing`, facing it, with random errors."""
-    x = centre[0] + distance * math.cos(bearing)
-    y = centre[1] + distance * math.sin(bearing)
+    """The VI robot at `distance` from `centre` on `bearing`, facing it, with random errors; the
+    overhead cameras also report the other `robots`, with errors of the same kind. The VI robot does
+    not stand on another robot: it backs off along the bearing until it is clear of them."""
+    for _ in range(100):
+        x = centre[0] + distance * math.cos(bearing)
+        y = centre[1] + distance * math.sin(bearing)
+        if all(_clear_of(r, _outline(_square((x, y), VI_BASE_RADIUS)), VI_CLEARANCE) for r in robots):
+            break
+        distance += 0.05
     yaw = bearing + math.pi + rng.uniform(-settings.aim_error, settings.aim_error)
     tilt = (
         rng.uniform(-settings.base_height, settings.base_height),
         rng.uniform(-settings.base_tilt, settings.base_tilt),
         rng.uniform(-settings.base_tilt, settings.base_tilt),
     )
+    reported = tuple(_overhead((r.center[0], r.center[1], r.yaw), rng, settings) for r in robots)
+    return View((x, y, _wrap(yaw)), tilt, _overhead((x, y, yaw), rng, settings), settings, reported)
+
+
+def _overhead(truth: tuple[float, float, float], rng: np.random.Generator, settings: ViewSettings) -> tuple[
+    float, float, float
+]:
+    """What the overhead cameras report of a base at `truth` (x, y, yaw)."""
     error_angle = rng.uniform(0, 2 * math.pi)
     if settings.errors_at_bound:
         error = settings.position_error
@@ -267,12 +290,14 @@ def view_from(
     else:
         error = settings.position_error * math.sqrt(rng.random())
         turn = rng.uniform(-settings.yaw_error, settings.yaw_error)
-    overhead = (x + error * math.cos(error_angle), y + error * math.sin(error_angle), yaw + turn)
-    return View((x, y, _wrap(yaw)), tilt, (overhead[0], overhead[1], _wrap(overhead[2])), settings)
+    x, y, yaw = truth
+    return x + error * math.cos(error_angle), y + error * math.sin(error_angle), _wrap(yaw + turn)
 
 
-def random_view(centre: Array, rng: np.random.Generator, settings: ViewSettings = DEFAULT_VIEW) -> View:
-    return view_from(centre, rng.uniform(0, 2 * math.pi), rng.uniform(*settings.distance), rng, settings)
+def random_view(
+    centre: Array, rng: np.random.Generator, settings: ViewSettings = DEFAULT_VIEW, robots: tuple[ClutterBox, ...] = ()
+) -> View:
+    return view_from(centre, rng.uniform(0, 2 * math.pi), rng.uniform(*settings.distance), rng, settings, robots)
 
 
 def ring_of_views(
@@ -281,10 +306,150 @@ def ring_of_views(
     count: int = 12,
     distance: float = 1.1,
     settings: ViewSettings = DEFAULT_VIEW,
+    robots: tuple[ClutterBox, ...] = (),
 ) -> list[View]:
     """Candidate viewpoints evenly around the structure (for next-viewpoint choice)."""
     start = rng.uniform(0, 2 * math.pi)
-    return [view_from(centre, start + 2 * math.pi * k / count, distance, rng, settings) for k in range(count)]
+    return [
+        view_from(centre, start + 2 * math.pi * k / count, distance, rng, settings, robots) for k in range(count)
+    ]
+
+
+# -- conditions ---------------------------------------------------------------------------------------
+ROBOT_BOX = (0.33, 0.33, 0.35)  # m, an assembly robot as the world simulates it
+VI_BASE_RADIUS = 0.17  # m, the VI robot's round base (an iRobot Create)
+VI_CLEARANCE = 0.25  # m the VI robot keeps from other robots (no one parks a camera against a robot)
+LOW_MOUNT = ((0.10, 0.0, 0.28), (0.0, 0.20, 0.0))  # a camera low on the base, pitched a little down
+
+
+@dataclass(frozen=True)
+class Condition:
+    """What the world varies for a set of scenes."""
+
+    name: str
+    description: str
+    mount: tuple[tuple[float, float, float], tuple[float, float, float]] = (MOUNT_XYZ, MOUNT_RPY)  # nominal
+    mount_error: tuple[float, float] = (0.0, 0.0)  # true mount off the nominal one by up to (m, rad) per axis
+    distance: tuple[float, float] = (0.8, 1.5)  # m, VI robot to the structure's centre
+    errors_at_bound: bool = False  # overhead errors exactly 5 cm and 10 deg (else uniform up to those)
+    rocking: tuple[float, float] = (0.005, math.radians(1.5))  # base height (m) and roll/pitch (rad), per scan
+    robots_beside: tuple[int, int] = (0, 0)  # robots standing 3-15 cm from the structure's tiles
+    robot_near_camera: bool = False  # a robot 0.2-0.45 m in front of the camera, off to one side
+    clutter: float = 0.3  # chance of a box and a loose tile on the floor nearby
+    grazing_start: tuple[float, float] = (math.radians(78.0), math.radians(78.0))  # dropout onset, rad
+
+    def view_settings(self, rng: np.random.Generator) -> ViewSettings:
+        """The views of one scene: the true mount drawn about the nominal one."""
+        xyz, rpy = self.mount
+        error_xyz, error_rpy = self.mount_error
+        return ViewSettings(
+            distance=self.distance,
+            base_tilt=self.rocking[1],
+            base_height=self.rocking[0],
+            errors_at_bound=self.errors_at_bound,
+            mount_xyz=tuple(float(v + rng.uniform(-error_xyz, error_xyz)) for v in xyz),  # type: ignore[arg-type]
+            mount_rpy=tuple(float(v + rng.uniform(-error_rpy, error_rpy)) for v in rpy),  # type: ignore[arg-type]
+        )
+
+
+_WORLD = {
+    "mount_error": (0.005, math.radians(1.0)),
+    "errors_at_bound": True,
+    "rocking": (0.01, math.radians(1.5)),
+    "robots_beside": (1, 2),
+    "clutter": 1.0,
+    "grazing_start": (math.radians(70.0), math.radians(78.0)),
+}
+CONDITIONS = {
+    c.name: c
+    for c in (
+        Condition("paper", "high mount, errors up to the paper's bounds, some clutter"),
+        Condition(
+            "world",
+            "high mount off by 5 mm / 1 deg, errors at the bounds, base rocking 1 cm / 1.5 deg, 1-2 robots "
+            "beside the structure, clutter, grazing dropouts from 70-78 deg",
+            **_WORLD,  # type: ignore[arg-type]
+        ),
+        Condition("low", "as world, camera low (0.28 m, pitched 0.20 rad)", mount=LOW_MOUNT, **_WORLD),  # type: ignore[arg-type]
+        Condition(
+            "low_close", "as low, 0.6-0.9 m from the structure", mount=LOW_MOUNT, distance=(0.6, 0.9), **_WORLD  # type: ignore[arg-type]
+        ),
+        Condition(
+            "robot_near",
+            "as world, plus a robot 0.2-0.45 m in front of the camera",
+            robot_near_camera=True,
+            **_WORLD,  # type: ignore[arg-type]
+        ),
+    )
+}
+
+
+def robots_beside(structure: Structure, expected: Iterable[int], rng: np.random.Generator, count: int) -> tuple[
+    ClutterBox, ...
+]:
+    """`count` robot boxes standing 3-15 cm from the nearest tile of `expected`, clear of every tile."""
+    tiles = [structure.tiles[t] for t in expected] or list(structure.tiles.values())
+    corners = np.vstack([_outline(t.vertices[:, :2]) for t in tiles])
+    centre = corners.mean(axis=0)
+    robots: list[ClutterBox] = []
+    for _ in range(count):
+        for _attempt in range(50):
+            bearing = rng.uniform(0, 2 * math.pi)
+            yaw = rng.uniform(0, math.pi)
+            gap = rng.uniform(0.03, 0.15)
+            direction = np.array([math.cos(bearing), math.sin(bearing)])
+            # walk out from the centre until the box keeps `gap` from every tile corner and from the other robots
+            for reach in np.arange(0.05, 1.5, 0.01):
+                xy = centre + reach * direction
+                box = ClutterBox((float(xy[0]), float(xy[1]), ROBOT_BOX[2] / 2), ROBOT_BOX, yaw)
+                if _clear_of(box, corners, gap) and all(_clear_of(box, _corners(r), 0.05) for r in robots):
+                    robots.append(box)
+                    break
+            else:
+                continue
+            break
+    return tuple(robots)
+
+
+def robot_in_front(view: View, rng: np.random.Generator) -> ClutterBox:
+    """A robot 0.2-0.45 m in front of the VI robot's camera, off to one side: nearer than the
+    Kinect's range, it blanks part of the image and shades more with the projector."""
+    x, y, yaw = view.base
+    ahead = view.settings.mount_xyz[0] + rng.uniform(0.2, 0.45) + ROBOT_BOX[0] / 2
+    side = rng.choice([-1.0, 1.0]) * rng.uniform(0.15, 0.3)
+    cx = x + ahead * math.cos(yaw) - side * math.sin(yaw)
+    cy = y + ahead * math.sin(yaw) + side * math.cos(yaw)
+    return ClutterBox((cx, cy, ROBOT_BOX[2] / 2), ROBOT_BOX, float(rng.uniform(0, math.pi)))
+
+
+def _corners(box: ClutterBox) -> Array:
+    vertices, _ = box.mesh()
+    return _outline(vertices[:4, :2][[0, 1, 3, 2]])
+
+
+def _square(centre: tuple[float, float], half: float) -> Array:
+    x, y = centre
+    return np.array([[x - half, y - half], [x + half, y - half], [x + half, y + half], [x - half, y + half]])
+
+
+def _outline(points: Array, step: float = 0.01) -> Array:
+    """Points every `step` (m) along the closed polygon through the convex hull of `points`."""
+    hull = convex_hull_2d(points)
+    samples = [hull]
+    for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True):
+        n = max(1, int(np.linalg.norm(b - a) / step))
+        samples.append(a + np.linspace(0, 1, n, endpoint=False)[:, None] * (b - a))
+    return np.vstack(samples)
+
+
+def _clear_of(box: ClutterBox, points: Array, gap: float) -> bool:
+    """Whether every point lies at least `gap` outside the box's footprint."""
+    c, s = math.cos(box.yaw), math.sin(box.yaw)
+    relative = points - np.asarray(box.center[:2])
+    along = np.abs(c * relative[:, 0] + s * relative[:, 1]) - box.size[0] / 2
+    across = np.abs(-s * relative[:, 0] + c * relative[:, 1]) - box.size[1] / 2
+    outside = np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0))
+    return bool(np.all((outside >= gap) & ((along > 0) | (across > 0))))
 
 
 def _wrap(angle: float) -> float:

@@ -111,8 +111,10 @@ class SimWorld(Node):
         self.rng = random.Random(int(p("seed").value))
         self.max_position_error = float(p("overhead_position_error").value)
         self.max_yaw_error = math.radians(float(p("overhead_yaw_error_deg").value))
-        self.overhead_errors = {name: OverheadError() for name in [*self.robots, "vi"]}
-        self.overhead_errors["vi"] = OverheadError.draw(self.rng, self.max_position_error, self.max_yaw_error)
+        self.overhead_errors = {
+            name: OverheadError.draw(self.rng, self.max_position_error, self.max_yaw_error)
+            for name in [*self.robots, "vi"]
+        }
         self.faults = FaultInjector.scheduled(
             int(p("seed").value), int(p("removals").value),
             (float(p("removal_window_start").value), float(p("removal_window_end").value)),
@@ -313,6 +315,7 @@ class SimWorld(Node):
                 handle.publish_feedback(feedback)
                 await self.sleep(phase.duration)
                 self.positions[robot] = phase.end
+                self.overhead_errors[robot] = OverheadError.draw(self.rng, self.max_position_error, self.max_yaw_error)
                 if handle.is_cancel_requested:
                     result.error_code, result.message = PlaceTile.Result.CANCELED, "canceled"
                     handle.canceled()
@@ -401,7 +404,8 @@ class SimWorld(Node):
                 ClutterBox((x, y, self.robot_size[2] / 2), self.robot_size) for x, y in self.positions.values()
             ]
             stamp = self.stamp()
-        self.overhead_pubs["vi"].publish(self.overhead_pose("vi"))
+        for name, publisher in self.overhead_pubs.items():  # the overhead cameras see every robot
+            publisher.publish(self.overhead_pose(name))
         x, y, yaw = self.vi_pose
         pose = camera_pose(x, y, yaw, *self.camera_mount)
         self.scan_pool.submit(self.scan, present, robots, pose, stamp)

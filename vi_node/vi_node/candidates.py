@@ -32,8 +32,12 @@ class Candidates:
     def __len__(self) -> int:
         return len(self.points)
 
-    def subset(self, keep: NDArray[np.bool_] | NDArray[np.int64]) -> Candidates:
+    def subset(self, keep: NDArray[np.bool_] | NDArray[np.int64] | slice) -> Candidates:
         return Candidates(self.points[keep], self.optical[keep], self.pixels[keep])
+
+    def moved(self, correction: Array) -> Candidates:
+        """The same points with the map frame corrected by a 4x4 rigid transform."""
+        return Candidates(self.points @ correction[:3, :3].T + correction[:3, 3], self.optical, self.pixels)
 
 
 def select_candidates(

@@ -6,7 +6,9 @@
 
 Reads `/vi/camera/depth/points` (sensor_msgs/PointCloud2) and `/vi/overhead_pose`
 (geometry_msgs/PoseStamped) from a rosbag2 folder (MCAP or SQLite, as `ros2 bag record` or
-`tiling_sim`'s writer made it), pairs every scan with the overhead pose nearest in time and prints
+`tiling_sim`'s writer made it), and the other robots' `/<robot>/overhead_pose` where the bag holds
+them (their points are left out, as the node does), pairs every scan with the overhead pose nearest
+in time and prints
 one JSON object per scan, in the bag's order (DESIGN.md, inspection contract):
 {"stamp": S, "tiles": {"ID": {"state": "present"|"missing"|"occluded", "physical": N, "virtual": N}}}.
 States are fused over the bag's scans as the node fuses them (`fuse_scans`; `--no-fuse`: every
@@ -39,7 +41,7 @@ from vi_node.fusion import TileFusion, fuse_scan
 from vi_node.inspection_settings import InspectionSettings, SettingsError, load_settings, parse_tile_ids
 from vi_node.pipeline import InspectionPipeline
 from vi_node.point_cloud import CloudError, cloud_from_msg
-from vi_node.pose_matching import PoseBuffer
+from vi_node.pose_matching import PoseBuffer, TeamPoses
 from vi_node.pose_prior import OverheadPose
 from vi_node.scan_result import ScanResult
 
@@ -65,9 +67,16 @@ def _stamp_ns(header: Any, fallback: int) -> int:
     return stamp if stamp > 0 else fallback
 
 
-def read_recording(
-    bag: str | Path, cloud_topic: str = CLOUD_TOPIC, pose_topic: str = POSE_TOPIC
-) -> tuple[PoseBuffer, Iterator[RecordedScan]]:
+@dataclass
+class Recording:
+    """The overhead poses of a bag (the VI robot's and the other robots'), and its scans one by one."""
+
+    poses: PoseBuffer
+    team: TeamPoses
+    scans: Iterator[RecordedScan]
+
+
+def read_recording(bag: str | Path, cloud_topic: str = CLOUD_TOPIC, pose_topic: str = POSE_TOPIC) -> Recording:
     """All overhead poses of the bag, and its scans one by one (in the bag's order)."""
     from rosbags.rosbag2 import Reader, ReaderError
     from rosbags.typesys import Stores, get_typestore
@@ -85,8 +94,12 @@ def read_recording(
     if cloud_topic not in topics:
         reader.close()
         raise BagError(f"{path}: no {cloud_topic} topic (topics: {', '.join(sorted(topics)) or 'none'})")
-    poses = PoseBuffer(capacity=10**7)
-    pose_connections = [c for c in reader.connections if c.topic == pose_topic]
+    poses, team = PoseBuffer(capacity=10**7), TeamPoses(capacity=10**7)
+    pose_connections = [
+        c
+        for c in reader.connections
+        if c.topic == pose_topic or (c.topic.endswith("/overhead_pose") and c.topic.count("/") == 2)
+    ]
     try:
         for connection, timestamp, raw in reader.messages(connections=pose_connections):
             msg = typestore.deserialize_cdr(raw, connection.msgtype)
@@ -95,7 +108,11 @@ def read_recording(
                 pose = OverheadPose.from_quaternion(p.x, p.y, q.x, q.y, q.z, q.w)
             except ValueError:
                 continue  # a zero quaternion: not a pose
-            poses.add(_stamp_ns(msg.header, timestamp), pose)
+            stamp = _stamp_ns(msg.header, timestamp)
+            if connection.topic == pose_topic:
+                poses.add(stamp, pose)
+            else:
+                team.add(connection.topic.split("/")[1], stamp, pose)
     except ReaderError as error:
         reader.close()
         raise BagError(f"{path}: cannot read the bag: {error}") from None
@@ -121,7 +138,7 @@ def read_recording(
         finally:
             reader.close()
 
-    return poses, scans()
+    return Recording(poses, team, scans())
 
 
 def result_json(stamp_ns: int, result: ScanResult | None, error: str = "") -> dict[str, Any]:
@@ -270,19 +287,20 @@ def _run(args: argparse.Namespace) -> int:
     fuse = settings.fuse_scans and not args.no_fuse
     tolerance = int(settings.pose_tolerance * 1e9)
     try:
-        poses, scans = read_recording(args.bag)
-        for scan in scans:
+        recording = read_recording(args.bag)
+        for scan in recording.scans:
             result: ScanResult | None = None
             error = scan.problem
             if not error and scan.frame_id and scan.frame_id != OPTICAL_FRAME:
                 error = f"cloud frame is '{scan.frame_id}', expected '{OPTICAL_FRAME}'"
             if not error:
-                match = poses.nearest(scan.stamp_ns, tolerance)
+                match = recording.poses.nearest(scan.stamp_ns, tolerance)
                 if match is None:
                     error = f"no overhead pose within {settings.pose_tolerance:g} s of the scan"
                 else:
                     assert scan.cloud is not None
-                    result = pipeline.inspect(scan.cloud, match[0])
+                    robots = recording.team.at(scan.stamp_ns, int(settings.robot_pose_tolerance * 1e9))
+                    result = pipeline.inspect(scan.cloud, match[0], robots)
                     error = "" if result.ok else result.reason
                     if fuse:
                         result = fuse_scan(fusion, result)

@@ -34,10 +34,11 @@ class FloorSettings:
     band_slope: float = 0.05  # ... widened by this much per metre of range (prior roll/pitch errors)
     max_range: float = 3.5  # m, beyond this the Kinect's noise makes points useless for the fit
     keep_out: float = 0.3  # m, ignore points this close (in x, y) to the expected structure's box
-    max_tilt: float = math.radians(10.0)  # largest believable correction of roll/pitch
+    max_tilt: float = math.radians(6.0)  # largest believable correction of roll/pitch (rocking, mount)
     max_height_change: float = 0.15  # m, largest believable correction of the camera height
     min_points: int = 150
     sample_size: int = 600  # floor points kept for the alignment
+    consensus_trials: int = 40  # planes tried through 3 random candidates
 
 
 @dataclass(frozen=True)
@@ -66,7 +67,46 @@ def fit_floor(
 ) -> FloorFit | None:
     """Fit the floor plane near where `prior` (4x4 optical pose in map) predicts it; None if absent."""
     settings = settings or FloorSettings()
-    s = max(1, settings.stride)
+    points = _floor_candidates(cloud, prior, keep_out_low, keep_out_high, settings, settings.stride)
+    if len(points) < 4 * settings.min_points and settings.stride > 2:
+        # little floor in view (a low camera, robots around): look at more pixels
+        points = _floor_candidates(cloud, prior, keep_out_low, keep_out_high, settings, settings.stride // 2)
+    if len(points) < settings.min_points:
+        return None
+    up_prior = prior[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    keep = _consensus(points, up_prior, prior[2, 3], settings)
+    if keep is None:
+        return None
+    weights = 1.0 / _axial_sigma(points[:, 2]) ** 2
+    normal, offset = up_prior, 0.0
+    for _ in range(3):
+        normal, offset = _weighted_plane(points[keep], weights[keep], up_prior)
+        new_keep = np.abs(points @ normal - offset) / _axial_sigma(points[:, 2]) < 3.0
+        if new_keep.sum() < settings.min_points:
+            return None
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    height = -offset  # the floor lies below the camera: normal . p = -height on it
+    tilt = math.acos(float(np.clip(normal @ up_prior, -1.0, 1.0)))
+    if tilt > settings.max_tilt or abs(height - prior[2, 3]) > settings.max_height_change:
+        return None
+    inliers = points[keep]
+    rms = float(np.sqrt(np.mean((inliers @ normal - offset) ** 2)))
+    sample = inliers[:: max(1, len(inliers) // settings.sample_size)]
+    return FloorFit(normal=normal, height=height, points=len(inliers), rms=rms, sample=sample)
+
+
+def _floor_candidates(
+    cloud: NDArray[np.float32],
+    prior: Array,
+    keep_out_low: Array,
+    keep_out_high: Array,
+    settings: FloorSettings,
+    stride: int,
+) -> Array:
+    """Points (optical frame) near where the prior predicts the floor, away from the structure."""
+    s = max(1, stride)
     rotation, origin = prior[:3, :3], prior[:3, 3]
     sample = cloud[::s, ::s]
     # predicted height first (one row of the rotation), on the whole subsample at once
@@ -79,40 +119,48 @@ def fit_floor(
     points = sample[near_floor].astype(np.float64)
     world_xy = points @ rotation[:2].T + origin[:2]
     low, high = keep_out_low[:2] - settings.keep_out, keep_out_high[:2] + settings.keep_out
-    points = points[np.any((world_xy < low) | (world_xy > high), axis=1)]
-    if len(points) < settings.min_points:
-        return None
+    return points[np.any((world_xy < low) | (world_xy > high), axis=1)]
 
-    up_prior = rotation.T @ np.array([0.0, 0.0, 1.0])
-    weights = 1.0 / _axial_sigma(points[:, 2]) ** 2
-    keep = np.ones(len(points), dtype=bool)
-    normal, offset = up_prior, 0.0
-    for _ in range(3):
-        w = weights[keep]
-        p = points[keep]
-        centre = (w[:, None] * p).sum(axis=0) / w.sum()
-        centred = p - centre
-        covariance = (w[:, None] * centred).T @ centred
-        _, vectors = np.linalg.eigh(covariance)
-        normal = vectors[:, 0]
+
+def _consensus(
+    points: Array, up_prior: Array, prior_height: float, settings: FloorSettings
+) -> NDArray[np.bool_] | None:
+    """The points of the plane (within max_tilt and max_height_change of the prior's floor) that
+    most of them lie on: the floor, not the tops of tiles or boxes on it, not the feet of robots."""
+    rng = np.random.default_rng(len(points))  # the same scan gives the same fit
+    sigma = _axial_sigma(points[:, 2])
+    best, best_count = None, 0
+    triples = rng.integers(0, len(points), size=(settings.consensus_trials, 3))
+    for a, b, c in triples:
+        normal = np.cross(points[b] - points[a], points[c] - points[a])
+        length = float(np.linalg.norm(normal))
+        if length < 1e-9:
+            continue
+        normal /= length
         if normal @ up_prior < 0:
             normal = -normal
-        offset = float(normal @ centre)
-        residual = np.abs(points @ normal - offset) / _axial_sigma(points[:, 2])
-        new_keep = residual < 3.0
-        if new_keep.sum() < settings.min_points:
-            return None
-        if np.array_equal(new_keep, keep):
-            break
-        keep = new_keep
-    height = -offset  # the floor lies below the camera: normal . p = -height on it
-    tilt = math.acos(float(np.clip(normal @ up_prior, -1.0, 1.0)))
-    if tilt > settings.max_tilt or abs(height - origin[2]) > settings.max_height_change:
+        offset = float(normal @ points[a])
+        if normal @ up_prior < math.cos(settings.max_tilt) or abs(-offset - prior_height) > settings.max_height_change:
+            continue
+        inliers = np.abs(points @ normal - offset) < 3.0 * sigma + 0.002
+        count = int(inliers.sum())
+        if count > best_count:
+            best, best_count = inliers, count
+    if best is None or best_count < settings.min_points:
         return None
-    inliers = points[keep]
-    rms = float(np.sqrt(np.mean((inliers @ normal - offset) ** 2)))
-    sample = inliers[:: max(1, len(inliers) // settings.sample_size)]
-    return FloorFit(normal=normal, height=height, points=len(inliers), rms=rms, sample=sample)
+    return best
+
+
+def _weighted_plane(points: Array, weights: Array, up: Array) -> tuple[Array, float]:
+    """Noise-weighted total least squares plane: unit normal (towards `up`) and offset."""
+    centre = (weights[:, None] * points).sum(axis=0) / weights.sum()
+    centred = points - centre
+    covariance = (weights[:, None] * centred).T @ centred
+    _, vectors = np.linalg.eigh(covariance)
+    normal = vectors[:, 0]
+    if normal @ up < 0:
+        normal = -normal
+    return normal, float(normal @ centre)
 
 
 def correct_pose(prior: Array, floor: FloorFit) -> Array:

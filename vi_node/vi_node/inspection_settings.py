@@ -15,7 +15,16 @@ from typing import Any
 
 import yaml
 
+from vi_node.evidence import EvidenceSettings
+from vi_node.expected_returns import ReturnSettings
+from vi_node.misplacement import MisplacementSettings
+from vi_node.robot_mask import RobotMaskSettings
+
 MODES = ("default", "paper")
+EVIDENCE = EvidenceSettings()
+RETURNS = ReturnSettings()
+ROBOTS = RobotMaskSettings()
+MISPLACEMENT = MisplacementSettings()
 
 
 def _setting(default: Any, description: str) -> Any:
@@ -50,14 +59,29 @@ class InspectionSettings:
     intrinsics_size: list[int] = _setting(  # noqa: RUF009 - a field() with a default_factory
         [640, 480], "image width, height (px) the intrinsics are given for; other resolutions are scaled"
     )
-    min_range: float = _setting(0.5, "nearest depth the camera measures (m)")
-    max_range: float = _setting(4.5, "farthest depth the camera measures (m)")
+    min_range: float = _setting(RETURNS.min_range, "nearest depth the camera measures (m)")
+    max_range: float = _setting(RETURNS.max_range, "farthest depth the camera measures (m)")
+    projector_offset: float = _setting(
+        RETURNS.projector_offset, "default: IR projector along the depth camera's x axis (m, + right)"
+    )
+    sure_incidence: float = _setting(
+        RETURNS.sure_incidence, "default: the camera surely returns from faces seen less obliquely (rad) ..."
+    )
+    blank_incidence: float = _setting(
+        RETURNS.blank_incidence, "default: ... and surely not from faces seen more obliquely (rad)"
+    )
     sensor_reliability: str = _setting(
         "auto",
         "clouds and overhead poses read 'reliable', 'best_effort' or 'auto' "
         "(reliable when every publisher offers it)",
     )
     pose_tolerance: float = _setting(0.1, "largest time between a scan and the overhead pose used for it (s)")
+    other_robots: str = _setting(
+        "", "default: robots whose overhead_pose to follow, comma-separated (empty: every one that appears)"
+    )
+    robot_pose_tolerance: float = _setting(
+        0.5, "default: largest time between a scan and another robot's overhead pose used for it (s)"
+    )
     floor_stride: int = _setting(6, "floor fit uses every n-th row and column of the cloud")
     floor_clearance: float = _setting(0.01, "points lower than this above the floor are floor (m)")
     box_margin: float = _setting(0.03, "candidates lie within this of S_a's bounding box (m)")
@@ -83,26 +107,79 @@ class InspectionSettings:
         1500, "default: ICP on at most this many candidates (paper mode: all of them)"
     )
     depth_sigmas: float = _setting(
-        3.0, "default: measured and virtual depth agree within this many noise sigmas ..."
+        EVIDENCE.depth_sigmas, "default: measured and virtual depth agree within this many noise sigmas ..."
     )
     depth_margin: float = _setting(
-        0.005, "default: ... plus this (m, model and pose error), more on oblique faces"
+        EVIDENCE.depth_margin, "default: ... plus this (m, model and pose error), more on oblique faces"
     )
-    max_incidence: float = _setting(1.43, "default: pixels seeing a face more obliquely are not judged (rad)")
-    min_observed_pixels: int = _setting(8, "default: a tile needs this many judged pixels with data ...")
-    min_observed_fraction: float = _setting(0.15, "default: ... and this share of the pixels it should fill")
-    present_fraction: float = _setting(0.7, "default: present when this share of the observed pixels agree")
+    max_incidence: float = _setting(
+        EVIDENCE.max_incidence, "default: pixels seeing a face more obliquely are not judged (rad)"
+    )
+    min_observed_pixels: int = _setting(
+        EVIDENCE.min_observed_pixels, "default: a tile needs this many decisive pixels ..."
+    )
+    min_observed_fraction: float = _setting(
+        EVIDENCE.min_observed_fraction, "default: ... and this share of the pixels it should fill"
+    )
+    present_fraction: float = _setting(
+        EVIDENCE.present_fraction, "default: present when this share of the decisive pixels agree ..."
+    )
+    present_share: float = _setting(
+        EVIDENCE.present_share, "default: ... and they are this share of all pixels that saw its place"
+    )
     missing_fraction: float = _setting(
-        0.6, "default: missing when this share of the observed pixels see through"
+        EVIDENCE.missing_fraction, "default: missing when this share of the decisive pixels are against it"
+    )
+    robot_size: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        list(ROBOTS.size), "default: other robots' box, x and y along the base and height (m)"
+    )
+    robot_position_error: float = _setting(
+        ROBOTS.position_error, "default: overhead localization error of the other robots (m) ..."
+    )
+    robot_yaw_error: float = _setting(ROBOTS.yaw_error, "default: ... and of their heading (rad)")
+    tall_margin: float = _setting(
+        ROBOTS.tall_margin, "default: points this far above the structure's top belong to something else (m)"
     )
     fuse_scans: bool = _setting(
         True, "publish states fused over the scans of the same S_a (default mode: evidence)"
     )
     misplacement_shift: float = _setting(
-        0.015, "default: flag a tile whose points say it moved this far (m) ..."
+        MISPLACEMENT.shift, "default: flag a tile whose points say it moved this far (m) ..."
     )
-    misplacement_yaw: float = _setting(0.175, "default: ... or turned this much (rad)")
+    misplacement_yaw: float = _setting(MISPLACEMENT.turn, "default: ... or turned this much (rad)")
     misplacement_points: int = _setting(3000, "default: judge placement on at most this many candidates")
+
+    def evidence(self) -> EvidenceSettings:
+        """The settings of the per-pixel evidence (`evidence`, `expected_returns`)."""
+        return EvidenceSettings(
+            depth_sigmas=self.depth_sigmas,
+            depth_margin=self.depth_margin,
+            max_incidence=self.max_incidence,
+            min_observed_pixels=self.min_observed_pixels,
+            min_observed_fraction=self.min_observed_fraction,
+            present_fraction=self.present_fraction,
+            present_share=self.present_share,
+            missing_fraction=self.missing_fraction,
+            returns=ReturnSettings(
+                min_range=self.min_range,
+                max_range=self.max_range,
+                sure_incidence=self.sure_incidence,
+                blank_incidence=self.blank_incidence,
+                projector_offset=self.projector_offset,
+            ),
+        )
+
+    def misplacement(self) -> MisplacementSettings:
+        return replace(MISPLACEMENT, shift=self.misplacement_shift, turn=self.misplacement_yaw)
+
+    def robot_mask(self) -> RobotMaskSettings:
+        return replace(
+            ROBOTS,
+            size=tuple(self.robot_size),  # type: ignore[arg-type]
+            position_error=self.robot_position_error,
+            yaw_error=self.robot_yaw_error,
+            tall_margin=self.tall_margin,
+        )
 
     @staticmethod
     def description(name: str) -> str:
@@ -141,6 +218,10 @@ class InspectionSettings:
             raise bad("intrinsics", "focal lengths and image size must be positive")
         if not 0 < self.min_range < self.max_range:
             raise bad("max_range", "must exceed min_range > 0")
+        if not self.sure_incidence <= self.blank_incidence < math.pi / 2:
+            raise bad("blank_incidence", "must lie between sure_incidence and pi/2")
+        if len(self.robot_size) != 3 or not all(v > 0 for v in self.robot_size):
+            raise bad("robot_size", "must be 3 positive numbers")
         if self.expected_tiles.strip().lower() != "all":
             try:
                 parse_tile_ids(self.expected_tiles)
@@ -148,6 +229,7 @@ class InspectionSettings:
                 raise bad("expected_tiles", str(error)) from None
         positive = (
             "pose_tolerance",
+            "robot_pose_tolerance",
             "floor_stride",
             "icp_max_iterations",
             "support_distance",
@@ -161,6 +243,8 @@ class InspectionSettings:
             "max_incidence",
             "icp_max_points",
             "misplacement_points",
+            "sure_incidence",
+            "blank_incidence",
         )
         for name in positive:
             if not getattr(self, name) > 0:
@@ -172,6 +256,9 @@ class InspectionSettings:
             "min_alignment_points",
             "depth_margin",
             "min_observed_pixels",
+            "robot_position_error",
+            "robot_yaw_error",
+            "tall_margin",
         )
         for name in non_negative:
             if not getattr(self, name) >= 0:
@@ -182,6 +269,7 @@ class InspectionSettings:
             "min_agreement",
             "min_observed_fraction",
             "present_fraction",
+            "present_share",
             "missing_fraction",
         ):
             if not 0 <= getattr(self, name) <= 1:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -30,7 +30,7 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class MisplacementSettings:
     shift: float = 0.015  # m, flag when the fitted offset of the tile exceeds this ...
-    turn: float = math.radians(10.0)  # rad, ... or its fitted turn exceeds this
+    turn: float = 0.175  # rad (10 deg), ... or its fitted turn exceeds this
     reach: float = 0.04  # m, points this close to a tile (and nearest to it) are its points
     min_points: int = 40  # fewer points: the tile cannot be judged
     min_off_share: float = 0.15  # refit only when this share of its points is off its faces
@@ -57,141 +57,170 @@ class TileFit:
     sigmas: tuple[float, float] = (0.0, 0.0)  # significance of the fitted shift and turn
 
 
-def noise_tolerance(depth: Array) -> Array:
-    """Distance (m) within which a point at this depth is on a surface (3 sigma + half a step)."""
-    return 3.0 * (0.0012 + 0.0019 * (depth - 0.4) ** 2) + 0.5 * 2.85e-3 * depth**2 + 0.003
+@dataclass(frozen=True)
+class ScanPoints:
+    """Aligned candidate points (map frame) and what one closest-point query on S_a says of them."""
+
+    points: Array  # (N, 3)
+    depth: Array  # (N,) depth in the camera (m)
+    nearest_tile: NDArray[np.int64]  # (N,) index of the nearest expected tile
+    closest: Array  # (N, 3) closest point on it
+    normal: Array  # (N, 3) surface normal there
 
 
-def assess(
-    points: Array,
-    depth: Array,
-    nearest_tile: NDArray[np.int64],
-    closest: Array,
-    normal: Array,
-    patches: PlanarPatches,
-    camera_position: Array,
-    settings: MisplacementSettings,
-    tiles: Sequence[PlacedTile] | None = None,
-    solid: Sequence[bool] | None = None,
-    suspects: Sequence[int] = (),
-    disturbed: Sequence[bool] | None = None,
-    surfaces: TileSurfaces | None = None,
-) -> dict[int, TileFit]:
-    """Judge every tile (by index into patches.tile_ids) from the aligned candidate points.
+@dataclass(frozen=True)
+class PlacementContext:
+    """What the refits need to know besides the points.
 
-    With the expected `tiles` (in patches' order), a fitted motion that would push a tile into
-    another one that is there (`solid`, default: all) is not believed: tiles do not interpenetrate.
-    `suspects` (tile indices) are refitted even when the first linearised step says little; with
-    `disturbed`, only tiles whose pixels do not all agree with the model are refitted at all.
-    `surfaces` answers the closest-point queries of the refits (default: the patch hierarchy).
-
-    `points` (N, 3, map frame) with their depth in the camera (m) and, from one closest-point query
-    on S_a, the nearest expected tile, the closest point on it and the surface normal there.
+    `tiles` (in `patches`' order): a fitted motion that would push a tile into another one that is
+    there (`solid`) is not believed, tiles do not interpenetrate. `disturbed`: only tiles whose
+    pixels do not all agree with the model are refitted at all; `suspects` (tile indices) are
+    refitted even when the first linearised step says little. `surfaces` answers the closest-point
+    queries of the refits.
     """
+
+    patches: PlanarPatches
+    camera_position: Array
+    tiles: Sequence[PlacedTile]
+    surfaces: TileSurfaces
+    solid: Sequence[bool]
+    disturbed: Sequence[bool]
+    suspects: Sequence[int] = ()
+
+
+def confirmed_by_pixels(fit: TileFit, agree: int, disagree: int, settings: MisplacementSettings) -> bool:
+    """Whether a refit that says "moved" is borne out by the tile's pixels: a tile that moved has left
+    some of its expected surface (see-through) or stands in front of it (`disagree` pixels). A shift
+    of 1.5 cm or more shows on a good share of its pixels, a turn of a small tile on a few corners."""
+    if not fit.misplaced:
+        return False
+    shifted = math.hypot(fit.offset[0], fit.offset[1]) >= 0.6 * settings.shift
+    needed = max(1.0, 0.05 * (agree + disagree)) if shifted else 1.0
+    return disagree >= needed
+
+
+def assess(scan: ScanPoints, context: PlacementContext, settings: MisplacementSettings) -> dict[int, TileFit]:
+    """Judge every tile (by index into context.patches.tile_ids) from the aligned candidate points."""
+    owners = _owners(scan, context, settings)
+    first = _first_steps(scan, owners, context.patches, settings)
     fits: dict[int, TileFit] = {}
-    gap = points - closest
+    # the most-off tiles first: once one is found moved, the points it explains are its own and
+    # cannot make a neighbour look moved too
+    claimed = np.zeros(len(scan.points), dtype=bool)
+    present = np.flatnonzero(first.points > 0)
+    for index in present[np.argsort(-first.rms[present], kind="stable")]:
+        fit = _judge_tile(int(index), scan, owners, first, claimed, context, settings)
+        fits[int(index)] = fit
+    return fits
+
+
+@dataclass(frozen=True)
+class _Owners:
+    """Which tile each point belongs to (len(patches): none), and its way to that tile's surface."""
+
+    owner: NDArray[np.int64]
+    distance: Array  # (N,) to the nearest expected surface
+    order: NDArray[np.int64]  # points sorted by owner ...
+    bounds: NDArray[np.int64]  # ... tile k's points are order[bounds[k]:bounds[k + 1]]
+
+
+def _owners(scan: ScanPoints, context: PlacementContext, settings: MisplacementSettings) -> _Owners:
+    gap = scan.points - scan.closest
     distance = np.sqrt(np.einsum("ij,ij->i", gap, gap))
     # a point can only lie on a face the camera sees: one whose nearest face looks away from the
     # camera (the bottom of a removed tile, on the top of the tile below it) belongs to no tile here
-    facing = np.einsum("ij,ij->i", normal, camera_position - closest) > 0
+    facing = np.einsum("ij,ij->i", scan.normal, context.camera_position - scan.closest) > 0
     own = (distance <= settings.reach) & (facing | (distance > 0.005))
-    # one linearised step of the planar fit for every tile at once: its point-to-surface residuals
-    # against x, y and a turn about the tile's centre (off-face points use the direction to the face)
-    direction = np.where((distance > 0.002)[:, None], gap / np.maximum(distance, 1e-9)[:, None], normal)
-    centres = patches.tile_centroid
-    owner = np.where(own, nearest_tile, len(patches))
-    arm = points[:, :2] - centres[np.minimum(owner, len(patches) - 1), :2]
+    count = len(context.patches)
+    owner = np.where(own, scan.nearest_tile, count)
+    order = np.argsort(owner, kind="stable")
+    return _Owners(owner, distance, order, np.searchsorted(owner[order], np.arange(count + 1)))
+
+
+@dataclass(frozen=True)
+class _FirstSteps:
+    points: NDArray[np.int64]  # per tile: points it owns
+    rms: Array  # per tile: RMS distance of those points to its faces
+    step: Array  # (tiles, 3) one linearised step of the planar fit: x, y, turn
+
+
+def _first_steps(
+    scan: ScanPoints, owners: _Owners, patches: PlanarPatches, settings: MisplacementSettings
+) -> _FirstSteps:
+    """One linearised step of the planar fit for every tile at once: its points' residuals to its
+    surface against x, y and a turn about the tile's centre (off-face points use the way to the
+    face)."""
+    owner, distance, count = owners.owner, owners.distance, len(patches) + 1
+    gap = scan.points - scan.closest
+    direction = np.where((distance > 0.002)[:, None], gap / np.maximum(distance, 1e-9)[:, None], scan.normal)
+    arm = scan.points[:, :2] - patches.tile_centroid[np.minimum(owner, len(patches) - 1), :2]
     rows = np.stack(
         [direction[:, 0], direction[:, 1], arm[:, 0] * direction[:, 1] - arm[:, 1] * direction[:, 0]], 1
     )
     residual = np.einsum("ij,ij->i", gap, direction)
-    count = len(patches) + 1
     normal_matrix = np.stack(
-        [
-            np.bincount(owner, weights=rows[:, a] * rows[:, b], minlength=count)
-            for a in range(3)
-            for b in range(3)
-        ],
+        [np.bincount(owner, weights=rows[:, a] * rows[:, b], minlength=count) for a in range(3) for b in range(3)],
         1,
     ).reshape(count, 3, 3)[:-1]
-    gradient = np.stack(
-        [np.bincount(owner, weights=rows[:, a] * residual, minlength=count) for a in range(3)], 1
-    )[:-1]
+    gradient = np.stack([np.bincount(owner, weights=rows[:, a] * residual, minlength=count) for a in range(3)], 1)[
+        :-1
+    ]
     points_of = np.bincount(owner, minlength=count)[:-1]
     squared = np.bincount(owner, weights=distance**2, minlength=count)[:-1]
     step = np.zeros((len(patches), 3))
     for index in np.flatnonzero(points_of >= settings.min_points):
         matrix = normal_matrix[index] + np.eye(3) * 1e-6 * max(np.trace(normal_matrix[index]), 1e-9)
         step[index] = -np.linalg.solve(matrix, gradient[index])
-    order = np.argsort(owner, kind="stable")
-    bounds = np.searchsorted(owner[order], np.arange(len(patches) + 1))
-    # the most-off tiles first: once one is found moved, the points it explains are its own and
-    # cannot make a neighbour look moved too
-    claimed = np.zeros(len(points), dtype=bool)
-    present = np.flatnonzero(points_of > 0)
-    rms_of = np.sqrt(squared[present] / points_of[present])
-    for index in present[np.argsort(-rms_of, kind="stable")]:
-        rms = float(np.sqrt(squared[index] / points_of[index]))
-        judged = bool(points_of[index] >= settings.min_points)
-        hint = (
-            math.hypot(step[index, 0], step[index, 1]) >= 0.4 * settings.shift
-            or abs(step[index, 2]) >= 0.4 * settings.turn
-        )
-        possible = disturbed is None or bool(disturbed[index])
-        if not (judged and possible and (hint or index in suspects)):
-            fits[int(index)] = TileFit(
-                int(points_of[index]), rms, judged, False, (0.0, 0.0, 0.0), rms, step[index]
-            )
-            continue
-        mine = order[bounds[index] : bounds[index + 1]]
-        mine = mine[~claimed[mine]]
-        if len(mine) < settings.min_points:
-            fits[int(index)] = TileFit(
-                int(points_of[index]), rms, False, False, (0.0, 0.0, 0.0), rms, step[index]
-            )
-            continue
-        offset, before, after, shift_sigmas, turn_sigmas, explained = _fit_tile(
-            points,
-            nearest_tile,
-            distance,
-            mine,
-            claimed,
-            int(index),
-            patches,
-            camera_position,
-            settings,
-            surfaces,
-        )
-        shifted = math.hypot(offset[0], offset[1]) >= settings.shift and shift_sigmas >= settings.significance
-        turned = abs(offset[2]) >= settings.turn and turn_sigmas >= settings.turn_significance
-        # a fit that ran off (further than a tile slips when placed) explains nothing
-        believable = (
-            math.hypot(offset[0], offset[1]) <= settings.max_shift and abs(offset[2]) <= settings.max_turn
-        )
-        moved = (
-            (shifted or turned)
-            and believable
-            and (tiles is None or _fits_among(tiles, int(index), offset, solid))
-        )
-        # the refit must explain the points better; a clear turn of a small tile barely changes the
-        # distances (the noise is as large as the corners' motion), its significance speaks for it
-        better = after <= settings.improvement * before or (
-            turned and turn_sigmas >= 1.5 * settings.turn_significance
-        )
-        fits[int(index)] = TileFit(
-            int(points_of[index]),
-            rms,
-            True,
-            bool(moved and better),
-            offset,
-            after,
-            step[index],
-            before,
-            (shift_sigmas, turn_sigmas),
-        )
-        if moved and better:
-            claimed[explained] = True
-    return fits
+    return _FirstSteps(points_of, np.sqrt(squared / np.maximum(points_of, 1)), step)
+
+
+def _judge_tile(
+    index: int,
+    scan: ScanPoints,
+    owners: _Owners,
+    first: _FirstSteps,
+    claimed: NDArray[np.bool_],
+    context: PlacementContext,
+    settings: MisplacementSettings,
+) -> TileFit:
+    """Refit one tile when its first step, its pixels or an earlier scan hint that it moved; marks
+    the points a tile found moved explains as `claimed`."""
+    count, rms, step = int(first.points[index]), float(first.rms[index]), first.step[index]
+    judged = bool(count >= settings.min_points)
+    hint = math.hypot(step[0], step[1]) >= 0.4 * settings.shift or abs(step[2]) >= 0.4 * settings.turn
+    possible = bool(context.disturbed[index])
+    unmoved = TileFit(points=count, residual=rms, judged=judged, misplaced=False, residual_after=rms, first_step=step)
+    if not (judged and possible and (hint or index in context.suspects)):
+        return unmoved
+    mine = owners.order[owners.bounds[index] : owners.bounds[index + 1]]
+    mine = mine[~claimed[mine]]
+    if len(mine) < settings.min_points:
+        return replace(unmoved, judged=False)
+    refit = _fit_tile(scan.points, scan.nearest_tile, owners.distance, mine, claimed, index, context, settings)
+    offset = refit.offset
+    shifted = math.hypot(offset[0], offset[1]) >= settings.shift and refit.shift_sigmas >= settings.significance
+    turned = abs(offset[2]) >= settings.turn and refit.turn_sigmas >= settings.turn_significance
+    # a fit that ran off (further than a tile slips when placed) explains nothing
+    believable = math.hypot(offset[0], offset[1]) <= settings.max_shift and abs(offset[2]) <= settings.max_turn
+    moved = (shifted or turned) and believable and _fits_among(context.tiles, index, offset, context.solid)
+    # the refit must explain the points better; a clear turn of a small tile barely changes the
+    # distances (the noise is as large as the corners' motion), its significance speaks for it
+    better = refit.after <= settings.improvement * refit.before or (
+        turned and refit.turn_sigmas >= 1.5 * settings.turn_significance
+    )
+    if moved and better:
+        claimed[refit.explained] = True
+    return TileFit(
+        points=count,
+        residual=rms,
+        judged=True,
+        misplaced=bool(moved and better),
+        offset=offset,
+        residual_after=refit.after,
+        first_step=step,
+        median_before=refit.before,
+        sigmas=(refit.shift_sigmas, refit.turn_sigmas),
+    )
 
 
 def moved_tile(tile: PlacedTile, offset: tuple[float, float, float]) -> PlacedTile:
@@ -219,6 +248,16 @@ def _fits_among(
     return True
 
 
+@dataclass(frozen=True)
+class _Refit:
+    offset: tuple[float, float, float]  # the tile's motion: x, y (m), yaw (rad)
+    before: float  # m, median distance of the final points to the tile where it should be ...
+    after: float  # ... and where the fit puts it
+    shift_sigmas: float  # significance (standard deviations) of the fitted shift ...
+    turn_sigmas: float  # ... and turn
+    explained: NDArray[np.int64]  # the points the moved tile explains
+
+
 def _fit_tile(
     points: Array,
     nearest_tile: NDArray[np.int64],
@@ -226,18 +265,15 @@ def _fit_tile(
     mine: NDArray[np.int64],
     claimed: NDArray[np.bool_],
     index: int,
-    patches: PlanarPatches,
-    camera_position: Array,
+    context: PlacementContext,
     settings: MisplacementSettings,
-    surfaces: TileSurfaces | None = None,
-) -> tuple[tuple[float, float, float], float, float, float, float, NDArray[np.int64]]:
+) -> _Refit:
     """Refit tile `index` on its points, then once more on the points that the moved tile explains
     better than any other tile does (a moved tile's points may have been closer to a neighbour's
-    faces). Points `claimed` by a tile already found moved are left out. Returns its motion, the
-    RMS distance of the final points before and after, the significance (in standard deviations)
-    of the fitted shift and turn, and the points the moved tile explains."""
+    faces). Points `claimed` by a tile already found moved are left out."""
+    patches, camera_position, surfaces = context.patches, context.camera_position, context.surfaces
     centre = patches.tile_centroid[index]
-    theta, shift, after, covariance = _refit(
+    theta, shift, _, covariance = _refit(
         points[mine], index, patches, camera_position, settings, surfaces
     )
     chosen = mine
@@ -258,15 +294,29 @@ def _fit_tile(
             break
         chosen = around[keep]
         previous = (theta, shift.copy())
-        theta, shift, after, covariance = _refit(
+        theta, shift, _, covariance = _refit(
             points[chosen], index, patches, camera_position, settings, surfaces, (theta, shift)
         )
         if abs(theta - previous[0]) < 0.005 and np.linalg.norm(shift - previous[1]) < 0.001:
             break
-    # how well the points fit the tile where it should be and where the fit puts it: median
-    # distances (robust to the odd point of a neighbour), on the same points
+    return _summarise(points, chosen, index, theta, shift, covariance, context)
+
+
+def _summarise(
+    points: Array,
+    chosen: NDArray[np.int64],
+    index: int,
+    theta: float,
+    shift: Array,
+    covariance: Array,
+    context: PlacementContext,
+) -> _Refit:
+    """How well the points fit the tile where it should be and where the fit puts it (median
+    distances, robust to the odd point of a neighbour), and how many standard deviations the fitted
+    shift and turn are away from "in place"."""
+    patches, camera_position, surfaces = context.patches, context.camera_position, context.surfaces
+    centre = patches.tile_centroid[index]
     unmoved = _project(patches, surfaces, points[chosen], index, 0.08, camera_position)
-    # how many standard deviations the fitted shift and turn are away from "in place"
     try:
         shift_sigmas = float(np.sqrt(shift @ np.linalg.solve(covariance[:2, :2], shift)))
     except np.linalg.LinAlgError:
@@ -282,7 +332,7 @@ def _fit_tile(
     after = float(np.median(np.where(final.found, final.distance, 0.08)))
     explained = chosen[final.found & (final.distance <= 0.006)]
     x, y, _ = _motion(centre, theta, shift)
-    return (x, y, -turn), before, after, shift_sigmas, turn_sigmas, explained
+    return _Refit((x, y, -turn), before, after, shift_sigmas, turn_sigmas, explained)
 
 
 class TileSurfaces(Protocol):

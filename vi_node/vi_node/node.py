@@ -3,7 +3,9 @@
 Run in the VI robot's namespace (`ros2 run vi_node vi_node --ros-args -r __ns:=/vi --params-file
 config/vi_node.yaml`). Subscribes `camera/depth/points` (sensor_msgs/PointCloud2, organized,
 camera_depth_optical_frame) and `overhead_pose` (geometry_msgs/PoseStamped, map), and the team's
-`/structure`, `/placement_reports` and `/auction/announcements`; publishes `/tile_states`
+`/structure`, `/placement_reports` and `/auction/announcements`, and the `overhead_pose` of every
+other robot (`/<robot>/overhead_pose`: those named in `other_robots`, or every one that appears; the
+inspection leaves out what they hide); publishes `/tile_states`
 (one TileStateArray per classified scan), `/tile_markers` (tiles coloured by state, for RViz) and
 `/diagnostics`.
 
@@ -52,7 +54,7 @@ from vi_node.inspection_settings import InspectionSettings, SettingsError, parse
 from vi_node.misplacement import moved_tile
 from vi_node.pipeline import InspectionPipeline
 from vi_node.point_cloud import CloudError, cloud_from_msg
-from vi_node.pose_matching import PoseBuffer
+from vi_node.pose_matching import PoseBuffer, TeamPoses
 from vi_node.pose_prior import OverheadPose
 from vi_node.scan_result import ScanResult
 
@@ -96,6 +98,8 @@ class ViNode(Node):
         self.pipeline: InspectionPipeline | None = None
         self.fusion = TileFusion()
         self.poses = PoseBuffer()
+        self.team = TeamPoses()
+        self.robot_subscriptions: dict[str, Any] = {}
         self.pending: PointCloud2 | None = None
         self.pending_since = 0.0
         self.inspecting = threading.Lock()  # held while a scan is inspected and its results published
@@ -122,6 +126,8 @@ class ViNode(Node):
         self.create_timer(0.01, self._process_pending, callback_group=scans)
         if self.settings.sensor_reliability == "auto":
             self.create_timer(0.5, self._match_sensor_publishers, callback_group=state)
+        self._follow_other_robots()
+        self.create_timer(1.0, self._follow_other_robots, callback_group=state)
         self._update_expected()
         self.get_logger().info(
             f"inspecting in {self.settings.mode} mode; structure: "
@@ -225,6 +231,35 @@ class ViNode(Node):
             subscription = self.create_subscription(kind, topic, callback, qos, callback_group=group)
             self.sensor_subscriptions[topic] = (subscription, wanted)
 
+    def _follow_other_robots(self) -> None:
+        """Subscribe the overhead pose of every other robot: `other_robots`, or every
+        `/<robot>/overhead_pose` topic in the graph besides this robot's own."""
+        own = self.resolve_topic_name("overhead_pose")
+        names = [n.strip() for n in self.settings.other_robots.split(",") if n.strip()]
+        if not names:
+            names = [
+                topic.split("/")[1]
+                for topic, _ in self.get_topic_names_and_types()
+                if topic.endswith("/overhead_pose") and topic.count("/") == 2 and topic != own
+            ]
+        qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
+        for name in names:
+            if name not in self.robot_subscriptions:
+                self.robot_subscriptions[name] = self.create_subscription(
+                    PoseStamped,
+                    f"/{name}/overhead_pose",
+                    lambda msg, name=name: self._on_robot_pose(name, msg),
+                    qos,
+                    callback_group=self.state_group,
+                )
+
+    def _on_robot_pose(self, name: str, msg: PoseStamped) -> None:
+        p, q = msg.pose.position, msg.pose.orientation
+        try:
+            self.team.add(name, _stamp_ns(msg.header), OverheadPose.from_quaternion(p.x, p.y, q.x, q.y, q.z, q.w))
+        except ValueError:
+            self._diagnose(DiagnosticStatus.WARN, f"ignored an overhead pose of {name} with a zero quaternion")
+
     def _on_pose(self, msg: PoseStamped) -> None:
         p, q = msg.pose.position, msg.pose.orientation
         try:
@@ -272,9 +307,10 @@ class ViNode(Node):
             )
             return
         self.pending = None
-        self._inspect(msg, match[0])
+        robots = self.team.at(stamp, int(self.settings.robot_pose_tolerance * 1e9))
+        self._inspect(msg, match[0], robots)
 
-    def _inspect(self, msg: PointCloud2, overhead: OverheadPose) -> None:
+    def _inspect(self, msg: PointCloud2, overhead: OverheadPose, robots: list[OverheadPose]) -> None:
         if msg.header.frame_id != OPTICAL_FRAME:
             self._diagnose(
                 DiagnosticStatus.ERROR,
@@ -292,7 +328,7 @@ class ViNode(Node):
             self._diagnose(DiagnosticStatus.ERROR, f"dropped a scan: {error}")
             return
         try:
-            result = self.pipeline.inspect(cloud, overhead)
+            result = self.pipeline.inspect(cloud, overhead, robots)
         except Exception as error:
             self.get_logger().error(f"inspection of a scan failed unexpectedly: {error!r}")
             self._diagnose(DiagnosticStatus.ERROR, f"inspection failed unexpectedly: {error!r}")

@@ -1,14 +1,18 @@
 """One depth scan end to end: align it to S_a, ray-trace S_a, classify every tile (section 2.2).
 
-Stages, each its own module: `pose_prior` (overhead pose + mount), `floor` (height, roll, pitch),
-`candidates` (C_1), `coarse_alignment` (x, y, yaw search), `icp` (point-to-plane, with the floor
-as part of the known scene), `raycast` (the virtual scan C_v), then the classification:
+`InspectionPipeline.inspect` reads as the row of stages, each its own module: `pose_prior`
+(overhead pose + mount), `floor` (height, roll, pitch), `robot_mask` (other robots in view, left
+out of everything that follows), `coarse_alignment` (x, y, yaw search), `candidates` (C_1), `icp`
+(point-to-plane, with the floor as part of the known scene), `raycast` (the virtual scan C_v),
+then the classification of the mode chosen at start-up:
 
-- `paper` mode: projections of the candidates through the `patches` hierarchy give p_i, the
-  virtual scan v_i, and `classify` applies the paper's rules (section 2.2.3);
-- `default` mode: `evidence` compares measured and virtual depth pixel by pixel (agree,
-  see-through, in front, no return), decides every tile relative to what the virtual scan predicts
-  for it, and `misplacement` refits tiles whose points sit off their faces. ICP runs on a
+- `paper`: projections of the candidates through the `patches` hierarchy give p_i, the virtual
+  scan v_i, and `classify` applies the paper's rules (section 2.2.3). Nothing beyond the paper:
+  no robot mask, ICP on every candidate.
+- `default`: `evidence` judges every pixel between "the tile is there" and "the tile is gone"
+  (the virtual scan, what lies behind each tile, and where the camera would return at all:
+  `expected_returns`), and `misplacement` refits tiles whose points sit off their faces; a tile
+  found misplaced is judged once more after an alignment that leaves it out. ICP runs on a
   subsample of the candidates against Open3D's BVH instead of the patch hierarchy.
 
 Every stage is timed. A scan that cannot be aligned gives no tile states at all, never wrong ones.
@@ -21,27 +25,32 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tiling_assembly.geometry import rpy_from_rotation
 from tiling_assembly.structure import Structure
+from vi_node.blank_evidence import blank_evidence
 from vi_node.camera_model import OPTICAL_FROM_LINK, PinholeCamera
 from vi_node.candidates import Candidates, select_candidates
-from vi_node.classify import TileState, classify_paper
+from vi_node.classify import TileState, paper_support
 from vi_node.coarse_alignment import CoarseAligner, CoarseSettings
-from vi_node.evidence import EvidenceSettings, TileEvidence, decide, pixel_evidence
+from vi_node.evidence import TileEvidence, decide, judgeable, pixel_evidence, smooth, unexpected
+from vi_node.expected_returns import expect_returns
 from vi_node.floor import FloorFit, FloorSettings, correct_pose, fit_floor
-from vi_node.icp import Correspondences, IcpSettings, point_to_plane_icp
+from vi_node.icp import Correspondences, IcpResult, IcpSettings, point_to_plane_icp
 from vi_node.inspection_settings import InspectionSettings
-from vi_node.misplacement import MisplacementSettings, assess
+from vi_node.misplacement import PlacementContext, ScanPoints, assess, confirmed_by_pixels
 from vi_node.patches import PlanarPatches
 from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior
 from vi_node.raycast import VirtualScan, VirtualScene
+from vi_node.robot_mask import RobotBoxes, inside_robots, tall_things
 from vi_node.scan_result import ScanResult, TileResult
 
 Array = NDArray[np.float64]
+Mask = NDArray[np.bool_]
 
 
 class ExpectedModel:
@@ -76,6 +85,29 @@ class _Timer:
         self._last = now
 
 
+@dataclass
+class _Scan:
+    """One scan on its way through the stages."""
+
+    cloud: NDArray[np.float32]
+    camera: PinholeCamera
+    prior: Array  # the optical frame's pose from the overhead pose and the mount
+    timer: _Timer = field(default_factory=_Timer)
+    notes: list[str] = field(default_factory=list)
+    floor: FloorFit | None = None
+    masked: Mask | None = None  # (H, W) pixels of other robots and tall things
+    robots: RobotBoxes | None = None  # the other robots the overhead cameras see
+
+    def failed(self, reason: str) -> ScanResult:
+        return ScanResult(ok=False, reason=reason, timings=self.timer.timings, notes=self.notes)
+
+    def keep(self, candidates: Candidates) -> Candidates:
+        """The candidates that are not masked."""
+        if self.masked is None:
+            return candidates
+        return candidates.subset(~self.masked.reshape(-1)[candidates.pixels])
+
+
 class InspectionPipeline:
     """The visual inspection of one structure; `inspect` runs one scan."""
 
@@ -85,22 +117,15 @@ class InspectionPipeline:
         settings.validate()
         self.structure = structure
         self.settings = settings
+        self.paper = settings.mode == "paper"
         fx, fy, cx, cy = settings.intrinsics
         width, height = settings.intrinsics_size
         self.camera = PinholeCamera(fx, fy, cx, cy, int(width), int(height))
         self.mount = CameraMount(tuple(settings.camera_xyz), tuple(settings.camera_rpy))  # type: ignore[arg-type]
-        self.evidence_settings = EvidenceSettings(
-            depth_sigmas=settings.depth_sigmas,
-            depth_margin=settings.depth_margin,
-            max_incidence=settings.max_incidence,
-            min_observed_pixels=settings.min_observed_pixels,
-            min_observed_fraction=settings.min_observed_fraction,
-            present_fraction=settings.present_fraction,
-            missing_fraction=settings.missing_fraction,
-        )
-        self.misplacement_settings = MisplacementSettings(
-            shift=settings.misplacement_shift, turn=settings.misplacement_yaw
-        )
+        self.evidence_settings = settings.evidence()
+        self.misplacement_settings = settings.misplacement()
+        self.robot_settings = settings.robot_mask()
+        self.structure_top = float(structure.bounds[1][2])
         self._models: dict[tuple[int, ...], ExpectedModel] = {}
         self.model = self._model_for(structure.tile_ids if expected is None else expected)
 
@@ -121,157 +146,206 @@ class InspectionPipeline:
         return self._models[key]
 
     # ----------------------------------------------------------------------------------------------
-    def inspect(self, cloud: NDArray[np.float32], overhead: OverheadPose) -> ScanResult:
-        """Classify every tile of S_a from one organized cloud and the overhead pose of its time."""
+    def inspect(
+        self, cloud: NDArray[np.float32], overhead: OverheadPose, robots: Sequence[OverheadPose] = ()
+    ) -> ScanResult:
+        """Classify every tile of S_a from one organized cloud, the overhead pose of its time and
+        the overhead poses of the other robots (default mode: their points are left out)."""
+        scan, failure = self._start(cloud, overhead)
+        if scan is None:
+            return failure
+        if robots and not self.paper:
+            scan.robots = RobotBoxes(robots, self.robot_settings)
+        pose = self._level_with_floor(scan)
+        if not self.paper:
+            self._mask_tall_things(scan, pose)
+        pose, failure = self._search_x_y_yaw(scan, pose)
+        if failure:
+            return scan.failed(failure)
+        candidates = self._candidates(scan, pose)
+        if len(candidates) < self.settings.min_alignment_points:
+            return scan.failed(f"alignment failed: only {len(candidates)} candidate points")
+        result = self._align_and_classify(scan, pose=pose, candidates=candidates)
+        if self.paper or not result.ok or not result.moved_tiles():
+            return result
+        return self._judge_again_without_moved_tiles(scan, pose=pose, candidates=candidates, first=result)
+
+    # -- stages -----------------------------------------------------------------------------------
+    def _start(self, cloud: NDArray[np.float32], overhead: OverheadPose) -> tuple[_Scan | None, ScanResult]:
+        """The scan with the camera of its resolution, or why it cannot be inspected."""
         timer = _Timer()
-        s = self.settings
-        paper = s.mode == "paper"
-        model = self.model
-        problem = self._check_cloud(cloud)
+        problem = _cloud_problem(cloud)
         if problem:
-            return ScanResult(False, problem, timings=timer.timings)
+            return None, ScanResult(ok=False, reason=problem, timings=timer.timings)
         try:
             camera = self.camera.at_resolution(cloud.shape[1], cloud.shape[0])
         except ValueError as error:
-            return ScanResult(False, str(error), timings=timer.timings)
-        if len(model) == 0:
-            return ScanResult(
-                True, "", [], None, timings=timer.timings, notes=["S_a is empty: nothing to inspect"]
-            )
-        notes: list[str] = []
+            return None, ScanResult(ok=False, reason=str(error), timings=timer.timings)
+        if len(self.model) == 0:
+            note = "S_a is empty: nothing to inspect"
+            return None, ScanResult(ok=True, timings=timer.timings, notes=[note])
         mismatch = camera.check_cloud(cloud)  # the driver's x = (u - cx) z / fx must hold
-        if mismatch:
-            notes.append(mismatch + ": check the intrinsics parameters")
         timer.lap("check")
-
-        prior = camera_prior(overhead, self.mount)
+        scan = _Scan(cloud, camera, camera_prior(overhead, self.mount), timer)
+        if mismatch:
+            scan.notes.append(mismatch + ": check the intrinsics parameters")
         timer.lap("prior")
-        floor = fit_floor(cloud, prior, model.low, model.high, FloorSettings(stride=s.floor_stride))
+        return scan, ScanResult(ok=True)
+
+    def _level_with_floor(self, scan: _Scan) -> Array:
+        """The prior with height, roll and pitch from the floor (section 2.2.1, T_f)."""
+        floor = fit_floor(
+            scan.cloud, scan.prior, self.model.low, self.model.high, FloorSettings(stride=self.settings.floor_stride)
+        )
+        scan.floor = floor
+        scan.timer.lap("floor")
         if floor is None:
-            notes.append(
+            scan.notes.append(
                 "floor not found near where the mount predicts it: using the mount's height, roll, pitch"
             )
-            pose = prior
-        else:
-            pose = correct_pose(prior, floor)
-        timer.lap("floor")
+            return scan.prior
+        return correct_pose(scan.prior, floor)
 
-        if s.coarse_search and model.coarse is not None:
-            reach = float(np.linalg.norm(0.5 * (model.low + model.high) - pose[:3, 3]))
-            wide = s.box_margin + s.coarse_shift_range + s.coarse_yaw_range * (reach + 0.3)
-            # the 1 cm voxels of the search need no more than every other pixel (default mode)
-            stride = 1 if paper else 2
-            near = select_candidates(
-                cloud, camera, pose, model.low, model.high, wide, s.floor_clearance, stride
-            )
-            timer.lap("candidates")
-            if len(near) < s.min_alignment_points // stride**2:
-                return self._failed(
-                    f"alignment failed: only {len(near)} points near the expected structure", timer, notes
-                )
-            coarse = model.coarse.align(near.points, pose[:3, 3])
-            if (
-                coarse is None
-                or coarse.on_surface < 0.25
-                or coarse.on_surface_points < s.min_alignment_points // stride**2
-            ):
-                share = 0.0 if coarse is None else coarse.on_surface
-                reason = f"alignment failed: no x/y/yaw puts the scan on S_a ({share:.0%} of points on it)"
-                return self._failed(reason, timer, notes)
-            pose = coarse.correction @ pose
-            timer.lap("coarse")
+    def _mask_tall_things(self, scan: _Scan, pose: Array) -> None:
+        """Pixels of things standing higher than the structure: robots, people (`robot_mask`)."""
+        model = self.model
+        high = model.high.copy()
+        high[2] = max(high[2], self.structure_top)
+        scan.masked = tall_things(
+            scan.cloud,
+            scan.camera,
+            pose,
+            model.low,
+            high,
+            reach=self._search_margin(pose),
+            floor_clearance=self.settings.floor_clearance,
+            settings=self.robot_settings,
+        )
+        scan.timer.lap("robots")
 
+    def _search_margin(self, pose: Array) -> float:
+        """How far around S_a's box points may lie before the x, y, yaw search (prior errors)."""
+        s, model = self.settings, self.model
+        reach = float(np.linalg.norm(0.5 * (model.low + model.high) - pose[:3, 3]))
+        return s.box_margin + s.coarse_shift_range + s.coarse_yaw_range * (reach + 0.3)
+
+    def _search_x_y_yaw(self, scan: _Scan, pose: Array) -> tuple[Array, str]:
+        """The coarse x, y, yaw correction of the overhead pose (`coarse_alignment`)."""
+        s, model = self.settings, self.model
+        if not s.coarse_search or model.coarse is None:
+            return pose, ""
+        # the 1 cm voxels of the search need no more than every other pixel (default mode)
+        stride = 1 if self.paper else 2
+        near = select_candidates(
+            scan.cloud,
+            scan.camera,
+            pose,
+            model.low,
+            model.high,
+            self._search_margin(pose),
+            s.floor_clearance,
+            stride,
+        )
+        near = scan.keep(near)
+        scan.timer.lap("candidates")
+        enough = s.min_alignment_points // stride**2
+        if len(near) < enough:
+            return pose, f"alignment failed: only {len(near)} points near the expected structure"
+        coarse = model.coarse.align(near.points, pose[:3, 3])
+        scan.timer.lap("coarse")
+        if coarse is None or coarse.on_surface < 0.25 or coarse.on_surface_points < enough:
+            share = 0.0 if coarse is None else coarse.on_surface
+            return pose, f"alignment failed: no x/y/yaw puts the scan on S_a ({share:.0%} of points on it)"
+        return coarse.correction @ pose, ""
+
+    def _candidates(self, scan: _Scan, pose: Array) -> Candidates:
+        """C_1: points near S_a's box, above the floor, not of a robot; masks the robots' pixels."""
+        s, model = self.settings, self.model
         candidates = select_candidates(
-            cloud, camera, pose, model.low, model.high, s.box_margin, s.floor_clearance
+            scan.cloud, scan.camera, pose, model.low, model.high, s.box_margin, s.floor_clearance
         )
-        timer.lap("candidates")
-        if len(candidates) < s.min_alignment_points:
-            return self._failed(f"alignment failed: only {len(candidates)} candidate points", timer, notes)
-
-        result = self._align_and_classify(cloud, camera, model, prior, pose, floor, candidates, timer, notes)
-        if paper or not result.ok or not any(flagged for flagged, _, _ in result.misplacement.values()):
-            return result
-        # a misplaced tile pulls the alignment towards where it lies: align once more, from the
-        # coarse fit, without the points around the tiles found misplaced, and judge everything again
-        assert result.camera_pose is not None
-        keep = np.ones(len(candidates), dtype=bool)
-        correction = result.camera_pose @ np.linalg.inv(pose)  # the first ICP's
-        placed = Candidates(
-            candidates.points @ correction[:3, :3].T + correction[:3, 3],
-            candidates.optical,
-            candidates.pixels,
-        )
-        moved_points = placed.points
-        for tile_id, (flagged, offset, _) in result.misplacement.items():
-            if flagged:
-                index = model.tile_ids.index(tile_id)
-                reach = self.misplacement_settings.reach + math.hypot(offset[0], offset[1])
-                low, high = model.patches.tile_low[index] - reach, model.patches.tile_high[index] + reach
-                keep &= ~np.all((moved_points >= low) & (moved_points <= high), axis=1)
-        if keep.sum() < s.min_alignment_points:
-            return self._unless_all_moved(result, timer, notes)
-        second = self._align_and_classify(
-            cloud,
-            camera,
-            model,
-            prior,
-            pose,  # from the coarse fit again: the first ICP may have been dragged off
-            floor,
-            candidates.subset(keep),
-            timer,
-            notes,
-            rejudge=candidates,
-            suspects=[
-                model.tile_ids.index(t) for t, (flagged, _, _) in result.misplacement.items() if flagged
-            ],
-        )
-        return self._unless_all_moved(second if second.ok else result, timer, notes)
-
-    def _unless_all_moved(self, result: ScanResult, timer: _Timer, notes: list[str]) -> ScanResult:
-        """No states from a scan in which many tiles seem moved: a misalignment, far more likely than
-        several tiles misplaced at once (or the whole structure was pushed: S_a no longer fits)."""
-        judged = len(result.misplacement)
-        moved = sum(flagged for flagged, _, _ in result.misplacement.values())
-        if moved >= 2 and moved >= 0.25 * judged:
-            return self._failed(
-                f"alignment doubtful: {moved} of {judged} tiles seem moved together", timer, notes
-            )
-        return result
+        if scan.robots is not None:
+            robot = inside_robots(candidates.points, scan.robots.robots, self.robot_settings)
+            if robot.any():
+                if scan.masked is None:
+                    scan.masked = np.zeros(scan.cloud.shape[:2], dtype=bool)
+                scan.masked.reshape(-1)[candidates.pixels[robot]] = True
+        scan.timer.lap("candidates")
+        return scan.keep(candidates)
 
     def _align_and_classify(
         self,
-        cloud: NDArray[np.float32],
-        camera: PinholeCamera,
-        model: ExpectedModel,
-        prior: Array,
+        scan: _Scan,
         pose: Array,
-        floor: FloorFit | None,
         candidates: Candidates,
-        timer: _Timer,
-        notes: list[str],
-        rejudge: Candidates | None = None,
+        judged: Candidates | None = None,
         suspects: Sequence[int] = (),
     ) -> ScanResult:
         """ICP of `candidates` (and the floor) from `pose`, the checks, the virtual scan and the
-        classification. `rejudge`: the candidates to judge placement on, when ICP used fewer;
+        classification. `judged`: the candidates to judge placement on, when ICP used fewer;
         `suspects`: tiles (indices) found misplaced before, refitted whatever the first step says."""
+        icp = self._refine_with_icp(scan, pose=pose, candidates=candidates)
+        pose = icp.correction @ pose
+        placed = (judged or candidates).moved(icp.correction)
+        failure = self._check_alignment(scan, pose=pose, icp=icp, candidates=candidates, placed=placed)
+        if failure:
+            return scan.failed(failure)
+        virtual = self._virtual_scan(scan, pose)
+        masked = self._masked_in_window(scan, virtual, pose)
+        against_blank = None
+        if not self.paper:
+            virtual = self.model.scene.look_behind(
+                virtual, scan.camera, pose, where=judgeable(virtual, self.evidence_settings, masked)
+            )
+            scan.timer.lap("look behind")
+            against_blank = self._blanks_against_tiles(scan, virtual, pose, masked)
+        evidence = pixel_evidence(
+            scan.cloud, virtual, len(self.model), self.evidence_settings, against_blank, masked
+        )
+        scan.timer.lap("evidence")
+        # a scan that contradicts most of what S_a predicts is misaligned (a fragment of the structure
+        # fitted to the wrong place), or S_a is mostly gone: either way no states from it
+        doubt = _doubtful(evidence, self.settings)
+        if doubt:
+            return scan.failed(f"alignment doubtful: {doubt}")
+        result = ScanResult(
+            ok=True,
+            camera_pose=pose,
+            alignment_rms=icp.rms,
+            candidates=len(candidates),
+            timings=scan.timer.timings,
+            notes=scan.notes,
+            tile_ids=self.model.tile_ids,
+        )
+        if self.paper:
+            self._classify_paper(placed, virtual, pose, result)
+            scan.timer.lap("classify")
+        else:
+            self._classify_by_evidence(evidence, result)
+            scan.timer.lap("classify")
+            self._judge_placement(placed, pose, result, suspects)
+            scan.timer.lap("misplacement")
+        return result
+
+    def _refine_with_icp(self, scan: _Scan, pose: Array, candidates: Candidates) -> IcpResult:
+        """Point-to-plane ICP of the candidates against S_a and of the floor sample against the floor."""
         s = self.settings
-        paper = s.mode == "paper"
-        structure_correspond = self._correspondence_function(model, pose[:3, 3].copy())
-        if paper:
+        if self.paper:
             structure_points = candidates.points
         else:
             structure_points = candidates.points[:: max(1, math.ceil(len(candidates) / s.icp_max_points))]
+        floor = scan.floor
         floor_points = np.zeros((0, 3)) if floor is None else floor.sample @ pose[:3, :3].T + pose[:3, 3]
+        on_structure = self._correspondences(pose[:3, 3].copy())
         count = len(structure_points)
 
         def correspond(points: Array, cut: float) -> Correspondences:
-            on_structure = structure_correspond(points[:count], cut)
+            structure = on_structure(points[:count], cut)
             on_floor = points[count:]
             return Correspondences(
-                np.vstack([on_structure.closest, on_floor * np.array([1.0, 1.0, 0.0])]),
-                np.vstack([on_structure.normal, np.tile([0.0, 0.0, 1.0], (len(on_floor), 1))]),
-                np.concatenate([on_structure.distance, np.abs(on_floor[:, 2])]),
+                np.vstack([structure.closest, on_floor * np.array([1.0, 1.0, 0.0])]),
+                np.vstack([structure.normal, np.tile([0.0, 0.0, 1.0], (len(on_floor), 1))]),
+                np.concatenate([structure.distance, np.abs(on_floor[:, 2])]),
             )
 
         icp = point_to_plane_icp(
@@ -279,71 +353,14 @@ class InspectionPipeline:
             correspond,
             IcpSettings(max_iterations=s.icp_max_iterations),
         )
-        pose = icp.correction @ pose
-        judged = rejudge if rejudge is not None else candidates
-        correction = icp.correction
-        aligned = Candidates(
-            judged.points @ correction[:3, :3].T + correction[:3, 3], judged.optical, judged.pixels
-        )
-        timer.lap("icp")
+        scan.timer.lap("icp")
+        return icp
 
-        if paper:
-            final = structure_correspond(
-                structure_points @ icp.correction[:3, :3].T + icp.correction[:3, 3], 0.01
-            )
-            on_structure, nearest_tile = final.distance, None
-            closest = normals = np.zeros((0, 3))
-        else:  # one closest-point query serves the check and the misplacement
-            aligned = aligned.subset(
-                slice(None, None, max(1, math.ceil(len(aligned) / s.misplacement_points)))
-            )
-            closest, normals, nearest_tile = model.scene.closest_points(aligned.points)
-            on_structure = np.sqrt(np.einsum("ij,ij->i", aligned.points - closest, aligned.points - closest))
-            if rejudge is not None:  # the check concerns the points ICP used
-                inside = np.isin(aligned.pixels, candidates.pixels)
-                on_structure = on_structure[inside]
-        failure = self._check_alignment(
-            prior, pose, int(np.count_nonzero(on_structure <= 0.01)), len(on_structure)
-        )
-        if failure:
-            return self._failed(failure, timer, notes)
-        timer.lap("check alignment")
-
-        rows, cols = camera.box_roi(pose, model.low, model.high)
-        virtual = model.scene.cast(camera, pose, rows, cols, s.min_range, s.max_range)
-        timer.lap("raycast")
-
-        # a scan that contradicts most of what S_a predicts is misaligned (a fragment of the structure
-        # fitted to the wrong place), or S_a is mostly gone: either way no states from it
-        evidence = pixel_evidence(cloud, virtual, len(model), self.evidence_settings)
-        agree, observed = int(evidence.agree.sum()), int(evidence.observed.sum())
-        if observed >= s.min_observed_pixels and agree < s.min_agreement * observed:
-            reason = (
-                f"alignment doubtful: the scan agrees with only {agree / observed:.0%} of what S_a predicts"
-            )
-            return self._failed(reason, timer, notes)
-        timer.lap("evidence")
-
-        result = ScanResult(
-            True, "", [], pose, icp.rms, len(candidates), timer.timings, notes, model.tile_ids
-        )
-        if paper:
-            self._classify_paper(model, aligned, virtual, pose, result)
-            timer.lap("classify")
-        else:
-            self._classify_default(evidence, model, result)
-            timer.lap("classify")
-            assert nearest_tile is not None
-            self._judge_placement(model, aligned, nearest_tile, closest, normals, pose, result, suspects)
-            timer.lap("misplacement")
-        return result
-
-    def _correspondence_function(
-        self, model: ExpectedModel, camera_position: Array
-    ) -> Callable[[Array, float], Correspondences]:
+    def _correspondences(self, camera_position: Array) -> Callable[[Array, float], Correspondences]:
         """Projections onto S_a: the paper's patch hierarchy (faces turned away left out) in paper
         mode; Open3D's BVH closest points in default mode (same answer, a fraction of the time)."""
-        if self.settings.mode == "paper":
+        model = self.model
+        if self.paper:
 
             def by_patches(points: Array, cut: float) -> Correspondences:
                 projection = model.patches.project(points, cut, camera_position)
@@ -359,122 +376,27 @@ class InspectionPipeline:
 
         return by_bvh
 
-    # ----------------------------------------------------------------------------------------------
-    def _classify_paper(
-        self, model: ExpectedModel, aligned: Candidates, virtual: VirtualScan, pose: Array, result: ScanResult
-    ) -> None:
-        """p_i from the candidates' projections onto S_a, v_i from the virtual scan; section 2.2.3."""
+    def _check_alignment(
+        self, scan: _Scan, pose: Array, icp: IcpResult, candidates: Candidates, placed: Candidates
+    ) -> str:
+        """Why the aligned pose is not believable, or "": enough of the points ICP used on S_a, and a
+        correction of the overhead pose within its error bounds."""
         s = self.settings
-        projection = model.patches.project(aligned.points, s.support_distance, pose[:3, 3])
-        found = projection.found
-        physical = np.bincount(projection.tile[found], minlength=len(model)).astype(np.int64)
-        squared = np.bincount(
-            projection.tile[found], weights=projection.distance[found] ** 2, minlength=len(model)
-        )
-        residual = np.sqrt(squared / np.maximum(physical, 1))
-        # the candidates lost everything lower than floor_clearance: so must the virtual points,
-        # or every tile standing on the floor would look half missing
-        visible = virtual.tile >= 0
-        rays = self.camera.at_resolution(*virtual.size).rays[virtual.rows, virtual.cols][visible]
-        height = (rays * virtual.depth[visible][:, None]) @ pose[2, :3] + pose[2, 3]
-        kept = virtual.tile[visible][height >= s.floor_clearance]
-        virtual_support = np.bincount(kept, minlength=len(model)).astype(np.int64)
-        states, ratio = classify_paper(physical, virtual_support, s.min_support, s.ratio_threshold)
-        evidence = TileEvidence.zeros(len(model))
-        evidence.agree, evidence.virtual = physical, virtual_support
-        result.evidence, result.evidence_states = evidence, states
-        result.tiles = [
-            TileResult(
-                int(tile_id),
-                TileState(int(states[k])),
-                int(physical[k]),
-                int(virtual_support[k]),
-                float(ratio[k]),
-                float(residual[k]),
-            )
-            for k, tile_id in enumerate(model.tile_ids)
-        ]
-
-    def _classify_default(self, evidence: TileEvidence, model: ExpectedModel, result: ScanResult) -> None:
-        """Decide every tile from its pixel evidence, relative to what the virtual scan predicts for it."""
-        states = decide(evidence, self.evidence_settings)
-        result.evidence, result.evidence_states = evidence, states
-        observed = np.maximum(evidence.observed, 1)
-        result.tiles = [
-            TileResult(
-                int(tile_id),
-                TileState(int(states[k])),
-                int(evidence.agree[k]),
-                int(evidence.virtual[k]),
-                float(evidence.agree[k] / observed[k]),
-                0.0,
-                int(evidence.see_through[k]),
-                int(evidence.in_front[k]),
-                int(evidence.no_return[k]),
-                int(evidence.judged[k]),
-            )
-            for k, tile_id in enumerate(model.tile_ids)
-        ]
-
-    def _judge_placement(
-        self,
-        model: ExpectedModel,
-        aligned: Candidates,
-        nearest_tile: NDArray[np.int64],
-        closest: Array,
-        normals: Array,
-        pose: Array,
-        result: ScanResult,
-        suspects: Sequence[int] = (),
-    ) -> None:
-        """Per-tile residuals, and MISPLACED for tiles whose points a planar motion explains better."""
-        fits = assess(
-            aligned.points,
-            aligned.optical[:, 2],
-            nearest_tile,
-            closest,
-            normals,
-            model.patches,
-            pose[:3, 3],
-            self.misplacement_settings,
-            model.tiles,
-            [t.state != TileState.MISSING for t in result.tiles],
-            suspects,
-            [t.see_through + t.in_front >= 1 for t in result.tiles],
-            model.scene,
-        )
-        for index, fit in fits.items():
-            tile = result.tiles[index]
-            tile.residual = fit.residual
-            # the pixels must agree with the refit: a tile that moved has left some of its expected
-            # surface (see-through) or stands in front of it; a shift of 1.5 cm or more shows on a
-            # good share of its pixels, a turn of a small tile on a few corners
-            disagree = tile.see_through + tile.in_front
-            shifted = math.hypot(fit.offset[0], fit.offset[1]) >= 0.6 * self.misplacement_settings.shift
-            needed = max(1.0, 0.05 * (tile.physical + disagree)) if shifted else 1.0
-            misplaced = fit.misplaced and disagree >= needed
-            if fit.judged:
-                result.misplacement[tile.tile_id] = (misplaced, fit.offset, fit.residual)
-            if misplaced:
-                tile.state, tile.offset = TileState.MISPLACED, fit.offset
-
-    def _check_cloud(self, cloud: object) -> str:
-        if not isinstance(cloud, np.ndarray) or cloud.ndim != 3 or cloud.shape[2] != 3:
-            shape = getattr(cloud, "shape", None)
-            return f"bad cloud: expected an organized (H, W, 3) array, got shape {shape}"
-        if cloud.shape[0] < 2 or cloud.shape[1] < 2:
-            return f"bad cloud: {cloud.shape[1]}x{cloud.shape[0]} is not an organized image"
-        valid = np.count_nonzero(np.isfinite(cloud[::4, ::4, 2]))
-        if valid == 0:
-            return "bad cloud: no valid points (all NaN or empty)"
-        return ""
-
-    def _check_alignment(self, prior: Array, pose: Array, inliers: int, points: int) -> str:
-        s = self.settings
+        if self.paper:
+            icp_points = candidates.points @ icp.correction[:3, :3].T + icp.correction[:3, 3]
+            distance = self._correspondences(pose[:3, 3])(icp_points, 0.01).distance
+        else:
+            sample = placed.points[:: max(1, math.ceil(len(placed) / s.misplacement_points))]
+            pixels = placed.pixels[:: max(1, math.ceil(len(placed) / s.misplacement_points))]
+            closest, _, _ = self.model.scene.closest_points(sample)
+            distance = np.sqrt(np.einsum("ij,ij->i", sample - closest, sample - closest))
+            distance = distance[np.isin(pixels, candidates.pixels)]  # the points ICP used
+        inliers, points = int(np.count_nonzero(distance <= 0.01)), len(distance)
+        scan.timer.lap("check alignment")
         if inliers < s.min_alignment_points or inliers < s.min_alignment_inliers * points:
             return f"alignment failed: ICP kept only {inliers} of {points} points on S_a"
-        shift = float(np.linalg.norm(pose[:2, 3] - prior[:2, 3]))
-        turn = abs(_yaw(pose) - _yaw(prior))
+        shift = float(np.linalg.norm(pose[:2, 3] - scan.prior[:2, 3]))
+        turn = abs(_yaw(pose) - _yaw(scan.prior))
         turn = min(turn, 2 * math.pi - turn)
         if shift > s.max_pose_correction or turn > s.max_yaw_correction:
             return (
@@ -483,9 +405,191 @@ class InspectionPipeline:
             )
         return ""
 
-    @staticmethod
-    def _failed(reason: str, timer: _Timer, notes: list[str]) -> ScanResult:
-        return ScanResult(False, reason, timings=timer.timings, notes=notes)
+    def _virtual_scan(self, scan: _Scan, pose: Array) -> VirtualScan:
+        """C_v over the window that sees S_a; default mode: with what lies behind every tile."""
+        model = self.model
+        rows, cols = scan.camera.box_roi(pose, model.low, model.high)
+        virtual = model.scene.cast(scan.camera, pose, rows, cols, self.settings.min_range, self.settings.max_range)
+        scan.timer.lap("raycast")
+        return virtual
+
+    def _masked_in_window(self, scan: _Scan, virtual: VirtualScan, pose: Array) -> Mask | None:
+        """Window pixels not to judge: masked ones, and those where a robot the overhead cameras
+        see stands in front of S_a (robots nearer than the camera's range leave no points to mask)."""
+        masked = None if scan.masked is None else scan.masked[virtual.rows, virtual.cols]
+        if scan.robots is None:
+            return masked
+        directions = scan.camera.rays[virtual.rows, virtual.cols] @ pose[:3, :3].T.astype(np.float32)
+        hidden = scan.robots.depth(pose[:3, 3], directions) < virtual.depth
+        return hidden if masked is None else masked | hidden
+
+    def _blanks_against_tiles(self, scan: _Scan, virtual: VirtualScan, pose: Array, masked: Mask | None) -> Mask:
+        """Blank pixels that only "the tile is gone" explains (`expected_returns`, `blank_evidence`)."""
+        depth = scan.cloud[..., 2]
+        blank = ~np.isfinite(depth[virtual.rows, virtual.cols])  # only blanks need the returns
+        returns = expect_returns(
+            virtual, self.model.scene, scan.camera, pose, self.evidence_settings.returns, where=blank
+        )
+        scan.timer.lap("expected returns")
+        other = unexpected(scan.cloud, virtual, self.evidence_settings)
+        against = blank_evidence(
+            depth,
+            virtual,
+            returns,
+            scan.camera,
+            self.evidence_settings.returns.projector_offset,
+            other if masked is None else other | masked,
+            smooth(virtual.depth),
+        )
+        scan.timer.lap("blank evidence")
+        return against
+
+    # -- classification ---------------------------------------------------------------------------
+    def _classify_paper(self, placed: Candidates, virtual: VirtualScan, pose: Array, result: ScanResult) -> None:
+        """p_i, v_i and the paper's rules (section 2.2.3, `classify.paper_support`)."""
+        s = self.settings
+        counts = paper_support(
+            patches=self.model.patches,
+            points=placed.points,
+            virtual=virtual,
+            rays=self.camera.at_resolution(*virtual.size).rays,
+            pose=pose,
+            support_distance=s.support_distance,
+            floor_clearance=s.floor_clearance,
+            min_support=s.min_support,
+            ratio_threshold=s.ratio_threshold,
+        )
+        evidence = TileEvidence.zeros(len(self.model))
+        evidence.agree, evidence.virtual = counts.physical, counts.virtual
+        result.evidence, result.evidence_states = evidence, counts.states
+        result.tiles = [
+            TileResult(
+                tile_id=int(tile_id),
+                state=TileState(int(counts.states[k])),
+                physical=int(counts.physical[k]),
+                virtual=int(counts.virtual[k]),
+                ratio=float(counts.ratio[k]),
+                residual=float(counts.residual[k]),
+            )
+            for k, tile_id in enumerate(self.model.tile_ids)
+        ]
+
+    def _classify_by_evidence(self, evidence: TileEvidence, result: ScanResult) -> None:
+        """Decide every tile from its pixel evidence, relative to what the virtual scan predicts for it."""
+        states = decide(evidence, self.evidence_settings)
+        result.evidence, result.evidence_states = evidence, states
+        observed = np.maximum(evidence.observed, 1)
+        result.tiles = [
+            TileResult(
+                tile_id=int(tile_id),
+                state=TileState(int(states[k])),
+                physical=int(evidence.agree[k]),
+                virtual=int(evidence.virtual[k]),
+                ratio=float(evidence.agree[k] / observed[k]),
+                see_through=int(evidence.see_through[k]),
+                in_front=int(evidence.in_front[k]),
+                no_return=int(evidence.no_return[k]),
+                judged=int(evidence.judged[k]),
+                blank=int(evidence.blank[k]),
+                ambiguous=int(evidence.ambiguous[k]),
+            )
+            for k, tile_id in enumerate(self.model.tile_ids)
+        ]
+
+    def _judge_placement(
+        self, placed: Candidates, pose: Array, result: ScanResult, suspects: Sequence[int] = ()
+    ) -> None:
+        """Per-tile residuals, and MISPLACED for tiles whose points a planar motion explains better
+        and whose pixels agree (`misplacement`)."""
+        model = self.model
+        sample = placed.subset(slice(None, None, max(1, math.ceil(len(placed) / self.settings.misplacement_points))))
+        closest, normals, nearest_tile = model.scene.closest_points(sample.points)
+        fits = assess(
+            ScanPoints(sample.points, sample.optical[:, 2], nearest_tile, closest, normals),
+            PlacementContext(
+                patches=model.patches,
+                camera_position=pose[:3, 3],
+                tiles=model.tiles,
+                surfaces=model.scene,
+                solid=[t.state != TileState.MISSING for t in result.tiles],
+                disturbed=[t.see_through + t.in_front >= 1 for t in result.tiles],
+                suspects=tuple(suspects),
+            ),
+            self.misplacement_settings,
+        )
+        for index, fit in fits.items():
+            tile = result.tiles[index]
+            tile.residual = fit.residual
+            misplaced = confirmed_by_pixels(
+                fit, agree=tile.physical, disagree=tile.see_through + tile.in_front, settings=self.misplacement_settings
+            )
+            if fit.judged:
+                result.misplacement[tile.tile_id] = (misplaced, fit.offset, fit.residual)
+            if misplaced:
+                tile.state, tile.offset = TileState.MISPLACED, fit.offset
+
+    def _judge_again_without_moved_tiles(
+        self, scan: _Scan, pose: Array, candidates: Candidates, first: ScanResult
+    ) -> ScanResult:
+        """A misplaced tile pulls the alignment towards where it lies: align once more, from the
+        coarse fit, without the points around the tiles found misplaced, and judge everything again."""
+        assert first.camera_pose is not None
+        model = self.model
+        placed = candidates.moved(first.camera_pose @ np.linalg.inv(pose))  # the first ICP's
+        keep = np.ones(len(candidates), dtype=bool)
+        moved = first.moved_tiles()
+        for tile_id in moved:
+            index = model.tile_ids.index(tile_id)
+            offset = first.misplacement[tile_id][1]
+            reach = self.misplacement_settings.reach + math.hypot(offset[0], offset[1])
+            low, high = model.patches.tile_low[index] - reach, model.patches.tile_high[index] + reach
+            keep &= ~np.all((placed.points >= low) & (placed.points <= high), axis=1)
+        if keep.sum() < self.settings.min_alignment_points:
+            return self._unless_all_moved(first, scan)
+        second = self._align_and_classify(
+            scan,
+            pose=pose,  # from the coarse fit again: the first ICP may have been dragged off
+            candidates=candidates.subset(keep),
+            judged=candidates,
+            suspects=[model.tile_ids.index(t) for t in moved],
+        )
+        return self._unless_all_moved(second if second.ok else first, scan)
+
+    def _unless_all_moved(self, result: ScanResult, scan: _Scan) -> ScanResult:
+        """No states from a scan in which many tiles seem moved: a misalignment, far more likely than
+        several tiles misplaced at once (or the whole structure was pushed: S_a no longer fits)."""
+        judged = len(result.misplacement)
+        moved = len(result.moved_tiles())
+        if moved >= 2 and moved >= 0.25 * judged:
+            return scan.failed(f"alignment doubtful: {moved} of {judged} tiles seem moved together")
+        return result
+
+
+def _doubtful(evidence: TileEvidence, settings: InspectionSettings) -> str:
+    """Why the pixel evidence says the scan is misaligned, or "". A scan that contradicts most of
+    what S_a predicts is misaligned (a fragment of the structure fitted to the wrong place), or S_a
+    is mostly gone: either way no states from it. So is one in which several tiles are each partly
+    there and partly not: a tile is there or gone, and one moved tile splits one tile, not several."""
+    agree, observed = int(evidence.agree.sum()), int(evidence.observed.sum())
+    if observed >= settings.min_observed_pixels and agree < settings.min_agreement * observed:
+        return f"the scan agrees with only {agree / observed:.0%} of what S_a predicts"
+    decisive = evidence.observed >= settings.min_observed_pixels
+    split = decisive & (np.minimum(evidence.agree, evidence.against) >= 0.25 * evidence.observed)
+    if split.sum() >= 2 and split.sum() >= 0.25 * decisive.sum():
+        return f"{int(split.sum())} of {int(decisive.sum())} tiles seen are each partly there and partly not"
+    return ""
+
+
+def _cloud_problem(cloud: object) -> str:
+    """Why `cloud` is not an organized cloud with data, or ""."""
+    if not isinstance(cloud, np.ndarray) or cloud.ndim != 3 or cloud.shape[2] != 3:
+        shape = getattr(cloud, "shape", None)
+        return f"bad cloud: expected an organized (H, W, 3) array, got shape {shape}"
+    if cloud.shape[0] < 2 or cloud.shape[1] < 2:
+        return f"bad cloud: {cloud.shape[1]}x{cloud.shape[0]} is not an organized image"
+    if np.count_nonzero(np.isfinite(cloud[::4, ::4, 2])) == 0:
+        return "bad cloud: no valid points (all NaN or empty)"
+    return ""
 
 
 def _yaw(pose: Array) -> float:

@@ -1,5 +1,6 @@
 """Pair every scan with the overhead pose nearest to it in time (paper section 2.2.1: the overhead
-system gives the pose prior of the scan)."""
+system gives the pose prior of the scan), and with where the other robots were then (the overhead
+cameras localize every robot; `robot_mask` leaves their points out)."""
 
 from __future__ import annotations
 
@@ -44,3 +45,19 @@ class PoseBuffer:
         )
         gap = abs(self._stamps[best] - stamp_ns)
         return (self._poses[best], gap) if gap <= tolerance_ns else None
+
+
+class TeamPoses:
+    """The overhead poses of the other robots, one buffer per robot (by name)."""
+
+    def __init__(self, capacity: int = 2000) -> None:
+        self.capacity = capacity
+        self.buffers: dict[str, PoseBuffer] = {}
+
+    def add(self, robot: str, stamp_ns: int, pose: OverheadPose) -> None:
+        self.buffers.setdefault(robot, PoseBuffer(self.capacity)).add(stamp_ns, pose)
+
+    def at(self, stamp_ns: int, tolerance_ns: int) -> list[OverheadPose]:
+        """Where each robot was at `stamp_ns`: its pose nearest in time, if within the tolerance."""
+        found = (buffer.nearest(stamp_ns, tolerance_ns) for buffer in self.buffers.values())
+        return [match[0] for match in found if match is not None]

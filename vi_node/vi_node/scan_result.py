@@ -19,9 +19,10 @@ class TileResult:
     """What the inspection says about one expected tile.
 
     Paper mode: physical = p_i (points projecting onto the tile), virtual = v_i, ratio = min(p/v, v/p).
-    Default mode: physical = pixels where the tile's surface was measured where expected,
-    virtual = v_i, ratio = share of the observed pixels that agree, see_through / in_front /
-    no_return the other judged pixels. Counts are summed over the scans fused (`scans`).
+    Default mode: physical = pixels where only "the tile is there" explains the measurement,
+    virtual = v_i, ratio = share of the decisive pixels that agree, see_through / blank (against
+    it), ambiguous / in_front / no_return (saying nothing) the other judged pixels (`evidence`).
+    Counts are summed over the scans fused (`scans`).
     """
 
     tile_id: int
@@ -34,6 +35,8 @@ class TileResult:
     in_front: int = 0
     no_return: int = 0
     judged: int = 0
+    blank: int = 0  # blanks only "the tile is gone" explains (against it)
+    ambiguous: int = 0  # measured where both "there" and "gone" explain it
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # MISPLACED: the tile's x, y (m), yaw (rad) motion
     scans: int = 1
 
@@ -58,3 +61,7 @@ class ScanResult:
 
     def by_id(self) -> dict[int, TileResult]:
         return {t.tile_id: t for t in self.tiles}
+
+    def moved_tiles(self) -> list[int]:
+        """Tiles this scan flagged misplaced."""
+        return [tile_id for tile_id, (flagged, _, _) in self.misplacement.items() if flagged]
