@@ -7,9 +7,21 @@ import math
 import numpy as np
 import pytest
 
+from vi_node.blank_evidence import blank_evidence
+from vi_node.camera_model import PinholeCamera
 from vi_node.classify import TileState
-from vi_node.evidence import EvidenceSettings, TileEvidence, decide, depth_tolerance, interior, pixel_evidence
-from vi_node.raycast import FLOOR, VirtualScan
+from vi_node.evidence import (
+    EvidenceSettings,
+    TileEvidence,
+    decide,
+    depth_tolerance,
+    interior,
+    pixel_evidence,
+    smooth,
+    unexpected,
+)
+from vi_node.expected_returns import ReturnExpectation
+from vi_node.raycast import FLOOR, SurfaceLayer, VirtualScan
 
 SETTINGS = EvidenceSettings()
 
@@ -86,3 +98,107 @@ def test_tiles_are_decided_relative_to_what_the_view_predicts(
     agree: int, through: int, judged: int, state: TileState
 ) -> None:
     assert TileState(int(decide(evidence(agree, through, judged), SETTINGS)[0])) == state
+
+
+# -- two hypotheses: "the tile is there" against "the tile is gone" -------------------------------
+# A 20 x 40 window: tile 0 fills columns 10-29 at 1.0 m, face-on; the floor around it returns.
+CAMERA = PinholeCamera(580.0, 580.0, 20.0, 10.0, 40, 20)
+ALL, NONE = np.ones((20, 40), dtype=bool), np.zeros((20, 40), dtype=bool)
+
+
+def two_layer_scan(behind_depth: float, behind_cos: float, tile_cos: float = 1.0) -> VirtualScan:
+    """Tile 0 in front of a surface at `behind_depth` seen with |cos| `behind_cos` (the floor
+    around the tile lies there too)."""
+    depth = np.full((20, 40), behind_depth, dtype=np.float32)
+    tile = np.full((20, 40), FLOOR, dtype=np.int64)
+    depth[2:18, 10:30], tile[2:18, 10:30] = 1.0, 0
+    cos = np.where(tile == 0, tile_cos, behind_cos).astype(np.float32)
+    behind = SurfaceLayer(
+        np.full((20, 40), behind_depth, np.float32), tile.copy(), np.full((20, 40), behind_cos, np.float32)
+    )
+    behind.tile[tile == 0] = FLOOR
+    face = np.where(tile >= 0, 0, -1)
+    return VirtualScan(slice(0, 20), slice(0, 40), depth, tile, face, cos, (40, 20), behind)
+
+
+def returns(present: np.ndarray, absent_blank: np.ndarray) -> ReturnExpectation:
+    return ReturnExpectation(present, ~present, ~absent_blank, absent_blank)
+
+
+def judge(virtual: VirtualScan, depth: np.ndarray, expected: ReturnExpectation) -> TileEvidence:
+    cloud = measured(depth)
+    against = blank_evidence(
+        depth, virtual, expected, CAMERA, 0.075, unexpected(cloud, virtual, SETTINGS), smooth(virtual.depth)
+    )
+    return pixel_evidence(cloud, virtual, 1, SETTINGS, against)
+
+
+def test_a_blank_only_the_missing_tile_explains_counts_against_it() -> None:
+    """A thin top-layer tile removed: the rays through its place end on grazing floor, the Kinect
+    returns nothing there, while the tile would have returned: evidence of absence."""
+    virtual = two_layer_scan(1.4, behind_cos=0.1)
+    depth = virtual.depth.copy()
+    depth[2:18, 10:30] = np.nan
+    depth[virtual.tile == FLOOR] = np.nan  # the grazing floor returns nothing anywhere ...
+    depth[:, :3] = 1.4  # ... but the surfaces around the hole do
+    depth[18:, :], depth[:2, :] = 1.4, 1.4
+    floor_returns = virtual.tile == FLOOR
+    floor_returns[:, 3:] &= False
+    evidence = judge(virtual, depth, returns((virtual.tile == 0) | floor_returns | ~np.isnan(depth), virtual.tile == 0))
+    assert evidence.blank[0] > 100 and evidence.agree[0] == 0
+    assert TileState(int(decide(evidence, SETTINGS)[0])) == TileState.MISSING
+
+
+def test_the_surface_revealed_within_a_centimetre_decides_nothing() -> None:
+    """Behind a removed tile lies another surface 8 mm further along the ray: its measurement fits
+    both hypotheses, and counts as ambiguous, not as the tile being there."""
+    virtual = two_layer_scan(1.008, behind_cos=1.0)
+    depth = virtual.depth.copy()
+    depth[2:18, 10:30] = 1.006
+    evidence = judge(virtual, depth, returns(ALL, NONE))
+    assert evidence.agree[0] == 0 and evidence.ambiguous[0] == evidence.judged[0] > 100
+    assert TileState(int(decide(evidence, SETTINGS)[0])) == TileState.OCCLUDED
+    # three centimetres behind, the hypotheses part: the same tile present agrees
+    virtual = two_layer_scan(1.03, behind_cos=1.0)
+    depth = virtual.depth.copy()
+    evidence = judge(virtual, depth, returns(ALL, NONE))
+    assert evidence.agree[0] == evidence.judged[0]
+    assert TileState(int(decide(evidence, SETTINGS)[0])) == TileState.PRESENT
+
+
+def test_a_blank_from_something_nearer_than_the_camera_s_range_says_nothing() -> None:
+    """Something 0.3 m from the camera blanks the tile and all around it: both hypotheses expected
+    returns around the tile, so the blank is not the tile's absence."""
+    virtual = two_layer_scan(1.4, behind_cos=0.1)
+    depth = np.full((20, 40), np.nan, dtype=np.float32)
+    depth[:, 36:] = 1.4
+    expected = returns(np.ones((20, 40), dtype=bool), virtual.tile == 0)
+    evidence = judge(virtual, depth, expected)
+    assert evidence.blank[0] == 0 and evidence.no_return[0] == evidence.judged[0]
+    assert TileState(int(decide(evidence, SETTINGS)[0])) == TileState.OCCLUDED
+
+
+def test_a_projector_shadow_on_a_present_tile_says_nothing() -> None:
+    """An object 0.6 m from the camera, just right of the tile, hides part of it from the projector
+    (7.5 cm to the camera's right): blank pixels left of the object are its shadow."""
+    virtual = two_layer_scan(1.4, behind_cos=0.1)
+    depth = virtual.depth.copy()
+    depth[virtual.tile == FLOOR] = 1.4
+    depth[:, 30:34] = 0.6  # the object, in front of the floor at the tile's right
+    depth[:, 18:30] = np.nan  # its shadow: 580 * 0.075 * (1/0.6 - 1/1.0) = 29 px wide at most
+    expected = returns(np.ones((20, 40), dtype=bool), virtual.tile == 0)
+    evidence = judge(virtual, depth, expected)
+    assert evidence.blank[0] == 0 and evidence.no_return[0] > 100 and evidence.agree[0] > 50
+    assert TileState(int(decide(evidence, SETTINGS)[0])) == TileState.PRESENT
+
+
+def test_a_present_tile_seen_at_grazing_incidence_is_present() -> None:
+    """A top face at 72 degrees: its returns are not sure, its depth noisy; what does return lies
+    on the face, well apart from the floor 6 cm further along the ray."""
+    virtual = two_layer_scan(1.06, behind_cos=0.3, tile_cos=0.3)
+    rng = np.random.default_rng(3)
+    depth = virtual.depth + rng.normal(0.0, 0.004, virtual.depth.shape).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.3] = np.nan  # grazing dropouts
+    evidence = judge(virtual, depth, returns(virtual.tile != 0, NONE))
+    assert evidence.blank[0] == 0 and evidence.see_through[0] <= 2
+    assert TileState(int(decide(evidence, SETTINGS)[0])) == TileState.PRESENT

@@ -4,12 +4,16 @@ team's topics, and bad input over the middleware."""
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import rclpy
 from conftest import stop_node_process
@@ -27,7 +31,9 @@ from visualization_msgs.msg import MarkerArray
 
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, TileStateArray
-from tiling_sim.scan_bag import read_truth
+from tiling_sim.inspection_scenarios import Scene, ViewSettings, robots_beside, view_from
+from tiling_sim.kinect import KinectSimulator
+from tiling_sim.scan_bag import ScanBagWriter, read_truth
 
 pytestmark = pytest.mark.ros
 
@@ -313,3 +319,41 @@ def test_bad_parameters_stop_the_node_with_one_line(param: str, text: str) -> No
     assert result.returncode != 0
     lines = [line for line in result.stderr.strip().splitlines() if line]
     assert len(lines) == 1 and text in lines[0] and "Traceback" not in result.stderr
+
+
+def record_scene_with_robots(path: Path) -> tuple[tuple[int, ...], list[tuple[float, float, float]]]:
+    """Two scans of the paper structure with tile 14 gone and two robots standing beside it,
+    their overhead poses recorded as the overhead cameras publish them."""
+    paper = structure()
+    rng = np.random.default_rng(41)
+    scene = Scene(paper, tuple(paper.tile_ids), (14,))
+    scene.robots = robots_beside(paper, scene.expected, rng, 2)
+    settings = replace(ViewSettings(), errors_at_bound=True)
+    simulator = KinectSimulator(seed=41)
+    with ScanBagWriter(path) as bag:
+        for k, bearing in enumerate((120.0, 200.0)):
+            view = view_from(scene.centre, math.radians(bearing), 1.1, rng, settings, scene.robots)
+            stamp = (100 + k) * 10**9
+            bag.write_pose(stamp - 5_000_000, *view.overhead)
+            for n, robot in enumerate(view.robots):
+                bag.write_pose(stamp - 5_000_000, *robot, robot=f"robot{n + 1}")
+            bag.write_scan(stamp, simulator.scan(scene.kinect_scene, view.camera))
+    return scene.removed, list(view.robots)
+
+
+def test_other_robots_overhead_poses_are_followed_and_their_points_left_out(probe: Probe, tmp_path: Path) -> None:
+    bag = tmp_path / "robots"
+    removed, _ = record_scene_with_robots(bag)
+    offline_states = offline(str(bag))
+    assert all("error" not in line for line in offline_states)
+    assert offline_states[-1]["tiles"]["14"]["state"] == "missing"
+    assert all(v["state"] != "missing" for k, v in offline_states[-1]["tiles"].items() if int(k) not in removed)
+    with vi_node(f"structure_file:={PAPER}", "other_robots:=robot1,robot2") as node:
+        assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), "vi_node did not start"
+        result = replay(str(bag))
+        assert result.returncode == 0, result.stderr
+        assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
+        assert node.poll() is None
+    assert any("(2 other robots in the scene)" in m for m in probe.diagnostics), probe.diagnostics
+    states = {s.tile_id: STATE_NAMES[s.state] for s in probe.states[-1].states}
+    assert states == {int(k): v["state"] for k, v in offline_states[-1]["tiles"].items()}

@@ -6,7 +6,8 @@ replay_bag` read the result like a recording of the real robot:
 
 - `/vi/camera/depth/points`: sensor_msgs/msg/PointCloud2, organized, x y z float32, frame
   `camera_depth_optical_frame`, NaN where there is no return;
-- `/vi/overhead_pose`: geometry_msgs/msg/PoseStamped, frame `map`, x, y and yaw of `base_link`.
+- `/vi/overhead_pose`: geometry_msgs/msg/PoseStamped, frame `map`, x, y and yaw of `base_link`;
+  `/<robot>/overhead_pose` the same of the other robots in view, where written.
 
 MCAP chunks are zstd-compressed (rosbag2's "storage" compression, which the MCAP reader of
 `ros2 bag` and `rosbags` both read): clouds full of NaN and millimetre depths shrink several-fold.
@@ -44,14 +45,14 @@ class ScanBagWriter:
             self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._truth: dict[str, Any] = {"scans": []}
         self._cloud_connection: Any = None
-        self._pose_connection: Any = None
+        self._pose_connections: dict[str, Any] = {}
 
     def __enter__(self) -> ScanBagWriter:
         self._writer.open()
         self._cloud_connection = self._writer.add_connection(
             CLOUD_TOPIC, "sensor_msgs/msg/PointCloud2", typestore=self.typestore
         )
-        self._pose_connection = self._writer.add_connection(
+        self._pose_connections["vi"] = self._writer.add_connection(
             POSE_TOPIC, "geometry_msgs/msg/PoseStamped", typestore=self.typestore
         )
         return self
@@ -70,8 +71,9 @@ class ScanBagWriter:
         stamp = types["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
         return types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
 
-    def write_pose(self, stamp_ns: int, x: float, y: float, yaw: float) -> None:
-        """An overhead pose of base_link (frame map, z = roll = pitch = 0)."""
+    def write_pose(self, stamp_ns: int, x: float, y: float, yaw: float, robot: str = "vi") -> None:
+        """An overhead pose of a robot's base_link (frame map, z = roll = pitch = 0): the VI
+        robot's, or another robot's (`/<robot>/overhead_pose`)."""
         types = self.typestore.types
         pose = types["geometry_msgs/msg/Pose"](
             position=types["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=0.0),
@@ -81,7 +83,11 @@ class ScanBagWriter:
         )
         msg = types["geometry_msgs/msg/PoseStamped"](header=self._header(stamp_ns, "map"), pose=pose)
         data = self.typestore.serialize_cdr(msg, "geometry_msgs/msg/PoseStamped")
-        self._writer.write(self._pose_connection, stamp_ns, data)
+        if robot not in self._pose_connections:
+            self._pose_connections[robot] = self._writer.add_connection(
+                f"/{robot}/overhead_pose", "geometry_msgs/msg/PoseStamped", typestore=self.typestore
+            )
+        self._writer.write(self._pose_connections[robot], stamp_ns, data)
 
     def write_scan(
         self,

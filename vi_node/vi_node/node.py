@@ -342,7 +342,8 @@ class ViNode(Node):
             return
         self.states_pub.publish(self._states_msg(msg, result))
         self.markers_pub.publish(self._markers_msg(msg, result))
-        self._diagnose(DiagnosticStatus.OK, f"classified {len(result.tiles)} tiles", result)
+        message = f"classified {len(result.tiles)} tiles ({len(robots)} other robots in the scene)"
+        self._diagnose(DiagnosticStatus.OK, message, result)
 
     # -- messages out -----------------------------------------------------------------------------
     def _states_msg(self, scan: PointCloud2, result: ScanResult) -> TileStateArray:

@@ -55,35 +55,53 @@ def tall_things(
     floor_clearance: float,
     settings: RobotMaskSettings,
 ) -> Mask:
-    """Pixels (H, W) of things standing higher than `high[2]` + margin within `reach` (m, in x and
-    y) of the box [low, high], and of everything above the floor inside their widened footprint.
+    """Pixels (H, W) around the box [low, high] (within `reach` in x and y, up to its top) of things
+    that stand higher than `high[2]` + margin: everything above the floor inside the widened
+    footprint of their higher points.
 
     `pose`: the optical frame in the map, right in height, roll and pitch (after the floor fit).
     """
     mask = np.zeros(cloud.shape[:2], dtype=bool)
     area_low = np.array([low[0] - reach, low[1] - reach, floor_clearance])
     area_high = np.array([high[0] + reach, high[1] + reach, 2.5])
+    shape = np.ceil((area_high[:2] - area_low[:2]) / settings.cell).astype(int) + 1
+    # the footprint: every other pixel is plenty for 1 cm cells of things 30 cm wide
     rows, cols = camera.box_roi(pose, area_low, area_high)
+    sparse = cloud[rows.start : rows.stop : 2, cols.start : cols.stop : 2]
+    points = _standing(sparse, pose, high[2] + settings.tall_margin)
+    if len(points) == 0:
+        return mask
+    grid = np.zeros(shape, dtype=bool)
+    cell, inside = _cells(points, pose, area_low, settings.cell, shape)
+    grid[cell[inside, 0], cell[inside, 1]] = True
+    grid = ndimage.binary_dilation(grid, iterations=max(1, round(settings.tall_widen / settings.cell)))
+    # the mask: every pixel that can see the box the alignment takes its points from
+    box_high = np.array([high[0] + reach, high[1] + reach, high[2] + settings.tall_margin])
+    rows, cols = camera.box_roi(pose, area_low, box_high)
     window = cloud[rows, cols]
     with np.errstate(invalid="ignore"):
-        height = window @ pose[2, :3].astype(np.float32) + np.float32(pose[2, 3])
-        v, u = np.nonzero(height > floor_clearance)
-    standing = window[v, u]
-    tall = height[v, u] > high[2] + settings.tall_margin
-    if not tall.any():
-        return mask
-    xy = standing @ pose[:2, :3].T.astype(np.float32) + pose[:2, 3].astype(np.float32)
-    shape = np.ceil((area_high[:2] - area_low[:2]) / settings.cell).astype(int) + 1
-    cell = np.floor((xy - area_low[:2].astype(np.float32)) / settings.cell).astype(np.int64)
-    inside = np.all((cell >= 0) & (cell < shape), axis=1)
-    grid = np.zeros(shape, dtype=bool)
-    grid[cell[tall & inside, 0], cell[tall & inside, 1]] = True
-    widen = max(1, round(settings.tall_widen / settings.cell))
-    grid = ndimage.binary_dilation(grid, iterations=widen)
-    hit = inside.copy()
-    hit[inside] = grid[cell[inside, 0], cell[inside, 1]]
-    mask[v[hit] + (rows.start or 0), u[hit] + (cols.start or 0)] = True
+        v, u = np.nonzero(window @ pose[2, :3].astype(np.float32) + np.float32(pose[2, 3]) > floor_clearance)
+    cell, inside = _cells(window[v, u], pose, area_low, settings.cell, shape)
+    covered = inside.copy()
+    covered[inside] = grid[cell[inside, 0], cell[inside, 1]]
+    mask[v[covered] + rows.start, u[covered] + cols.start] = True
     return mask
+
+
+def _standing(window: NDArray[np.float32], pose: Array, above: float) -> NDArray[np.float32]:
+    """Points (optical frame) of a window higher than `above` (m) in the map."""
+    with np.errstate(invalid="ignore"):
+        tall = window @ pose[2, :3].astype(np.float32) + np.float32(pose[2, 3]) > above
+    return window[tall]
+
+
+def _cells(
+    points: NDArray[np.float32], pose: Array, origin: Array, size: float, shape: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], Mask]:
+    """Grid cells (x, y) of optical-frame points in the map, and which lie inside the grid."""
+    xy = points @ pose[:2, :3].T.astype(np.float32) + pose[:2, 3].astype(np.float32)
+    cell = np.floor((xy - origin[:2].astype(np.float32)) / size).astype(np.int64)
+    return cell, np.all((cell >= 0) & (cell < shape), axis=1)
 
 
 def inside_robots(points: Array, robots: Sequence[OverheadPose], settings: RobotMaskSettings) -> Mask:
