@@ -287,7 +287,8 @@ class InspectionPipeline:
         icp = self._refine_with_icp(scan, pose=pose, candidates=candidates)
         pose = icp.correction @ pose
         placed = (judged or candidates).moved(icp.correction)
-        failure = self._check_alignment(scan, pose=pose, icp=icp, candidates=candidates, placed=placed)
+        nearest = None if self.paper else self._nearest_on_structure(placed, used=candidates)
+        failure = self._check_alignment(scan, pose=pose, icp=icp, candidates=candidates, nearest=nearest)
         if failure:
             return scan.failed(failure)
         virtual = self._virtual_scan(scan, pose)
@@ -323,7 +324,8 @@ class InspectionPipeline:
         else:
             self._classify_by_evidence(evidence, result)
             scan.timer.lap("classify")
-            self._judge_placement(placed, pose, result, suspects)
+            assert nearest is not None
+            self._judge_placement(nearest[0], pose, result, suspects)
             scan.timer.lap("misplacement")
         return result
 
@@ -376,21 +378,32 @@ class InspectionPipeline:
 
         return by_bvh
 
+    def _nearest_on_structure(self, placed: Candidates, used: Candidates) -> tuple[ScanPoints, Mask]:
+        """One closest-point query on S_a for a sample of the aligned candidates, for the alignment
+        check and the misplacement; and which of them ICP used."""
+        sample = placed.subset(slice(None, None, max(1, math.ceil(len(placed) / self.settings.misplacement_points))))
+        closest, normals, nearest_tile = self.model.scene.closest_points(sample.points)
+        points = ScanPoints(sample.points, sample.optical[:, 2], nearest_tile, closest, normals)
+        return points, np.isin(sample.pixels, used.pixels)
+
     def _check_alignment(
-        self, scan: _Scan, pose: Array, icp: IcpResult, candidates: Candidates, placed: Candidates
+        self,
+        scan: _Scan,
+        pose: Array,
+        icp: IcpResult,
+        candidates: Candidates,
+        nearest: tuple[ScanPoints, Mask] | None,
     ) -> str:
         """Why the aligned pose is not believable, or "": enough of the points ICP used on S_a, and a
         correction of the overhead pose within its error bounds."""
         s = self.settings
-        if self.paper:
+        if nearest is None:  # paper mode: the patch hierarchy on every candidate
             icp_points = candidates.points @ icp.correction[:3, :3].T + icp.correction[:3, 3]
             distance = self._correspondences(pose[:3, 3])(icp_points, 0.01).distance
         else:
-            sample = placed.points[:: max(1, math.ceil(len(placed) / s.misplacement_points))]
-            pixels = placed.pixels[:: max(1, math.ceil(len(placed) / s.misplacement_points))]
-            closest, _, _ = self.model.scene.closest_points(sample)
-            distance = np.sqrt(np.einsum("ij,ij->i", sample - closest, sample - closest))
-            distance = distance[np.isin(pixels, candidates.pixels)]  # the points ICP used
+            points, used = nearest
+            gap = points.points - points.closest
+            distance = np.sqrt(np.einsum("ij,ij->i", gap, gap))[used]
         inliers, points = int(np.count_nonzero(distance <= 0.01)), len(distance)
         scan.timer.lap("check alignment")
         if inliers < s.min_alignment_points or inliers < s.min_alignment_inliers * points:
@@ -497,15 +510,13 @@ class InspectionPipeline:
         ]
 
     def _judge_placement(
-        self, placed: Candidates, pose: Array, result: ScanResult, suspects: Sequence[int] = ()
+        self, points: ScanPoints, pose: Array, result: ScanResult, suspects: Sequence[int] = ()
     ) -> None:
         """Per-tile residuals, and MISPLACED for tiles whose points a planar motion explains better
         and whose pixels agree (`misplacement`)."""
         model = self.model
-        sample = placed.subset(slice(None, None, max(1, math.ceil(len(placed) / self.settings.misplacement_points))))
-        closest, normals, nearest_tile = model.scene.closest_points(sample.points)
         fits = assess(
-            ScanPoints(sample.points, sample.optical[:, 2], nearest_tile, closest, normals),
+            points,
             PlacementContext(
                 patches=model.patches,
                 camera_position=pose[:3, 3],
