@@ -183,3 +183,27 @@ def test_virtual_scan_matches_the_simulated_kinect_without_noise() -> None:
     depth = cloud[rows, cols, 2]
     both = np.isfinite(depth) & np.isfinite(virtual.depth)
     assert np.allclose(depth[both], virtual.depth[both], atol=1e-4)
+
+
+def test_icp_does_not_slide_along_what_the_view_leaves_free() -> None:
+    """Points on two parallel faces (normals along x) and the floor fix x, z, roll, pitch and yaw
+    but not y: one stray point off a y-facing face must not drag the pose along y."""
+    rng = np.random.default_rng(5)
+    faces = np.array([[x, y, z] for x in (0.0, 0.04) for y in np.linspace(-0.1, 0.1, 21) for z in (0.01, 0.03)])
+    floor = np.column_stack([rng.uniform(-0.3, 0.3, 200), rng.uniform(-0.3, 0.3, 200), np.zeros(200)])
+    stray = np.array([[0.02, 0.15, 0.02]])  # 1 cm in front of a face at y = 0.14 the model has
+    points = np.vstack([faces, floor, stray])
+
+    def correspond(p: np.ndarray, cut: float) -> Correspondences:
+        closest, normal = p.copy(), np.zeros_like(p)
+        on_faces = np.arange(len(p)) < len(faces)
+        on_floor = (np.arange(len(p)) >= len(faces)) & (np.arange(len(p)) < len(p) - 1)
+        closest[on_faces, 0] = np.where(p[on_faces, 0] < 0.02, 0.0, 0.04)
+        normal[on_faces] = (1.0, 0.0, 0.0)
+        closest[on_floor, 2], normal[on_floor] = 0.0, (0.0, 0.0, 1.0)
+        closest[-1, 1], normal[-1] = 0.14, (0.0, 1.0, 0.0)
+        return Correspondences(closest, normal, np.linalg.norm(p - closest, axis=1))
+
+    result = point_to_plane_icp(points, correspond)
+    assert abs(result.correction[1, 3]) < 1e-4  # y: free, stays
+    assert np.allclose(result.correction[:3, :3], np.eye(3), atol=1e-3)

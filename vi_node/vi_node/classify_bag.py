@@ -13,8 +13,9 @@ one JSON object per scan, in the bag's order (DESIGN.md, inspection contract):
 {"stamp": S, "tiles": {"ID": {"state": "present"|"missing"|"occluded", "physical": N, "virtual": N}}}.
 States are fused over the bag's scans as the node fuses them (`fuse_scans`; `--no-fuse`: every
 scan on its own). Extra keys: "scan_count", "alignment_rms", "camera_position" per scan; per tile
-"ratio", "residual", in the default mode "see_through", "in_front", "no_return", "judged" (pixel
-evidence) and, for a tile found misplaced, state "misplaced" and "offset" [x, y, yaw] (m, rad).
+"ratio", "residual", in the default mode the pixel evidence "see_through", "blank" (against the
+tile), "ambiguous", "in_front", "no_return" (saying nothing), "judged" and, for a tile found
+misplaced, state "misplaced" and "offset" [x, y, yaw] (m, rad).
 A scan that cannot be classified prints its stamp, empty "tiles" and an "error", plus one line on
 stderr. Bad arguments, parameters or structure: one line on stderr, exit status 2; a bag that
 cannot be read: one line, exit status 1.
@@ -141,8 +142,9 @@ def read_recording(bag: str | Path, cloud_topic: str = CLOUD_TOPIC, pose_topic: 
     return Recording(poses, team, scans())
 
 
-def result_json(stamp_ns: int, result: ScanResult | None, error: str = "") -> dict[str, Any]:
-    """The contract's JSON object for one scan (extra keys beyond the contract's are allowed)."""
+def result_json(stamp_ns: int, result: ScanResult | None, error: str = "", pixels: bool = False) -> dict[str, Any]:
+    """The contract's JSON object for one scan (extra keys beyond the contract's are allowed);
+    `pixels`: with the pixel evidence of the default mode."""
     out: dict[str, Any] = {"stamp": stamp_ns / 1e9, "tiles": {}}
     if result is None or not result.ok:
         out["error"] = error or (result.reason if result else "not classified")
@@ -155,9 +157,11 @@ def result_json(stamp_ns: int, result: ScanResult | None, error: str = "") -> di
             "ratio": round(tile.ratio, 3),
             "residual": round(tile.residual, 4),
         }
-        if result.evidence is not None and (tile.judged or tile.see_through or tile.in_front):
+        if pixels:
             entry.update(
                 see_through=tile.see_through,
+                blank=tile.blank,
+                ambiguous=tile.ambiguous,
                 in_front=tile.in_front,
                 no_return=tile.no_return,
                 judged=tile.judged,
@@ -306,7 +310,7 @@ def _run(args: argparse.Namespace) -> int:
                         result = fuse_scan(fusion, result)
             if error:
                 print(f"scan at {scan.stamp_ns / 1e9:.3f} s: {error}", file=sys.stderr)
-            print(json.dumps(result_json(scan.stamp_ns, result, error)), flush=True)
+            print(json.dumps(result_json(scan.stamp_ns, result, error, pixels=not pipeline.paper)), flush=True)
     except BagError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1

@@ -33,7 +33,8 @@ class CoarseSettings:
     shift_range: float = 0.10  # m, search +- this in x and y
     cell: float = 0.01  # m, voxel size
     surface_band: float = 0.005  # m, points this close to S_a's surface count as on it
-    off_penalty: float = 0.5  # what a point away from S_a costs, relative to one on it
+    off_penalty: float = 0.5  # what a point away from S_a (within its footprint) costs, relative to one on it
+    footprint_margin: float = 0.02  # m around S_a's box where points away from its surfaces cost
     max_points: int = 3000
 
 
@@ -82,7 +83,13 @@ class CoarseAligner:
             distance = np.full((nx, ny, nz), np.inf)
         near = distance <= s.surface_band + 0.5 * s.cell
         self.near = near
-        model = np.where(near, 1.0, -s.off_penalty).transpose(2, 0, 1)  # (nz, nx, ny)
+        # points away from S_a's surfaces cost only inside its footprint: clutter and robots around
+        # it would otherwise favour the shifts that move them off the grid
+        footprint = np.all(
+            (centres[..., :2] >= low[:2] - s.footprint_margin) & (centres[..., :2] <= high[:2] + s.footprint_margin),
+            axis=-1,
+        )
+        model = np.where(near, 1.0, np.where(footprint, -s.off_penalty, 0.0)).transpose(2, 0, 1)  # (nz, nx, ny)
         self.model_spectrum = scipy.fft.rfft2(model.astype(np.float32), workers=2)
         self.yaws = np.arange(-s.yaw_range, s.yaw_range + 1e-9, s.yaw_step)
         reach = round(s.shift_range / s.cell)
@@ -93,17 +100,22 @@ class CoarseAligner:
 
     def align(self, points: Array, pivot: Array) -> CoarseResult | None:
         """The best yaw about `pivot` (the camera) and x, y shift for `points` (N, 3, map frame)."""
+        found = self.hypotheses(points, pivot, 1)
+        return found[0] if found else None
+
+    def hypotheses(self, points: Array, pivot: Array, count: int) -> list[CoarseResult]:
+        """The `count` best yaws about `pivot` (the camera), each with its best x, y shift, best
+        first. Near the best score the 1 cm cells cannot tell a degree of yaw from a centimetre of
+        shift: the alignment refines several of them and keeps the one that fits S_a best."""
         s = self.settings
         if len(points) > s.max_points:
             points = points[:: math.ceil(len(points) / s.max_points)]
-        if len(points) == 0:
-            return None
         nx, ny, nz = self.shape
         iz = np.floor((points[:, 2] - self.origin[2]) / s.cell).astype(np.int64)
         keep = (iz >= 0) & (iz < nz)
         points, iz = points[keep], iz[keep]
         if len(points) == 0:
-            return None
+            return []
         rel = points[:, :2] - pivot[:2]
         cos, sin = np.cos(self.yaws)[:, None], np.sin(self.yaws)[:, None]
         x = cos * rel[:, 0] - sin * rel[:, 1] + pivot[0]
@@ -120,12 +132,17 @@ class CoarseAligner:
         score = scipy.fft.irfft2(spectrum.sum(axis=1), s=(nx, ny), workers=2)
         score = np.where(self.window[None], score, -np.inf)
         best = np.max(score.reshape(len(self.yaws), -1), axis=1)
-        top = best.max()
-        ties = np.flatnonzero(best >= top - 1e-6)
-        h = int(ties[np.argmin(np.abs(self.yaws[ties]))])
-        cell = int(np.argmax(score[h]))
-        shift = np.array([self.shift_x[cell // ny], self.shift_y[cell % ny]], dtype=float) * s.cell
-        ux, uy = ix[h] + self.shift_x[cell // ny], iy[h] + self.shift_y[cell % ny]
+        # best first; among equal scores the smaller turn
+        order = np.lexsort((np.abs(self.yaws), -np.round(best, 6)))[:count]
+        return [self._result(int(h), score[h], ix[h], iy[h], iz, pivot) for h in order]
+
+    def _result(
+        self, h: int, score: Array, ix: NDArray[np.int64], iy: NDArray[np.int64], iz: NDArray[np.int64], pivot: Array
+    ) -> CoarseResult:
+        nx, ny, _ = self.shape
+        cell = int(np.argmax(score))
+        shift = np.array([self.shift_x[cell // ny], self.shift_y[cell % ny]], dtype=float) * self.settings.cell
+        ux, uy = ix + self.shift_x[cell // ny], iy + self.shift_y[cell % ny]
         ok = (ux >= 0) & (ux < nx) & (uy >= 0) & (uy < ny)
         near = int(self.near[ux[ok], uy[ok], iz[ok]].sum())
         yaw = float(self.yaws[h])

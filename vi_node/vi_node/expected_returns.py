@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vi_node.camera_model import PinholeCamera
-from vi_node.raycast import SurfaceLayer, VirtualScan, VirtualScene
+from vi_node.raycast import UNSEEN, SurfaceLayer, VirtualScan, VirtualScene
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -87,6 +87,7 @@ def expect_returns(
 def _sure(layer: SurfaceLayer, lit: Mask, settings: ReturnSettings) -> tuple[Mask, Mask]:
     """Sure return and sure blank of one surface layer."""
     hit = np.isfinite(layer.depth)
+    unseen = layer.tile == UNSEEN
     with np.errstate(invalid="ignore"):
         in_range = (layer.depth >= settings.min_range + settings.range_margin) & (
             layer.depth <= settings.max_range - settings.range_margin
@@ -97,7 +98,7 @@ def _sure(layer: SurfaceLayer, lit: Mask, settings: ReturnSettings) -> tuple[Mas
     cos = layer.cos_incidence
     returns = hit & in_range & lit & (cos >= math.cos(settings.sure_incidence))
     blank = ~hit | out_of_range | (hit & ~lit) | (hit & (cos <= math.cos(settings.blank_incidence)))
-    return returns, blank & ~returns
+    return returns, blank & ~returns & ~unseen
 
 
 def _lit(

@@ -33,7 +33,7 @@ class FloorSettings:
     band: float = 0.04  # m, predicted height window at the camera ...
     band_slope: float = 0.05  # ... widened by this much per metre of range (prior roll/pitch errors)
     max_range: float = 3.5  # m, beyond this the Kinect's noise makes points useless for the fit
-    keep_out: float = 0.3  # m, ignore points this close (in x, y) to the expected structure's box
+    keep_out: float = 0.05  # m, ignore points this close (in x, y) to the expected structure's box
     max_tilt: float = math.radians(6.0)  # largest believable correction of roll/pitch (rocking, mount)
     max_height_change: float = 0.15  # m, largest believable correction of the camera height
     min_points: int = 150

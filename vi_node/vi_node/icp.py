@@ -48,6 +48,7 @@ class IcpSettings:
     huber: float = 0.004  # m, residuals beyond this get less weight
     converged_translation: float = 2e-4  # m, an update smaller than this ...
     converged_rotation: float = 4e-4  # rad, ... and this ends the iterations
+    degenerate: float = 0.5  # directions the points constrain less than half a point would do not move
 
 
 @dataclass(frozen=True)
@@ -90,10 +91,14 @@ def point_to_plane_icp(
         residual = np.einsum("ij,ij->i", p - q, n)
         jacobian = np.hstack([np.cross(p - centre, n), n])
         weight = np.minimum(1.0, settings.huber / np.maximum(np.abs(residual), 1e-12))
-        hessian = (jacobian * weight[:, None]).T @ jacobian
-        gradient = (jacobian * weight[:, None]).T @ residual
-        hessian += np.eye(6) * 1e-9 * max(np.trace(hessian), 1e-12)
-        step = -np.linalg.solve(hessian, gradient)
+        # rotations in units of the points' spread, so that a turn and a shift that move the points
+        # as far weigh the same when telling constrained directions from free ones
+        spread = float(np.sqrt(np.mean(np.einsum("ij,ij->i", p - centre, p - centre)))) or 1.0
+        scale = np.array([spread, spread, spread, 1.0, 1.0, 1.0])
+        scaled = jacobian / scale
+        hessian = (scaled * weight[:, None]).T @ scaled
+        gradient = (scaled * weight[:, None]).T @ residual
+        step = -_constrained_solve(hessian, gradient, settings.degenerate) / scale
         rms = float(np.sqrt(np.mean(residual**2)))
         rotation = _rotation_about(step[:3])
         update = np.eye(4)
@@ -108,6 +113,16 @@ def point_to_plane_icp(
             converged = True
             break
     return IcpResult(total, iterations, rms, inliers, converged)
+
+
+def _constrained_solve(hessian: Array, gradient: Array, degenerate: float) -> Array:
+    """Solve hessian @ x = gradient along the directions the points constrain only (eigenvalues
+    above `degenerate`: one point's normal along a direction adds at most 1): where the visible
+    faces leave the pose free (a view of parallel faces lets it slide along them), a few stray
+    points would drag it without bound; there it stays where the coarse search put it."""
+    values, vectors = np.linalg.eigh(hessian)
+    keep = values > max(degenerate, 1e-9 * float(values[-1]))
+    return vectors[:, keep] @ ((vectors[:, keep].T @ gradient) / values[keep])
 
 
 def yaw_shift_transform(yaw: float, pivot: Array, shift: Array) -> Array:

@@ -91,6 +91,9 @@ class InspectionSettings:
     coarse_yaw_range: float = _setting(0.21, "coarse search +- this about the overhead yaw (rad)")
     coarse_shift_range: float = _setting(0.10, "coarse search +- this in x and y (m)")
     icp_max_iterations: int = _setting(10, "ICP iterations at most (the paper: 10)")
+    alignment_hypotheses: int = _setting(
+        3, "default: best x/y/yaw hypotheses of the coarse search refined before the best fit is kept"
+    )
     min_alignment_points: int = _setting(60, "a scan with fewer aligned candidates is not classified")
     min_alignment_inliers: float = _setting(0.6, "fraction of candidates that must lie on S_a after ICP")
     min_agreement: float = _setting(0.35, "a scan agreeing with less of what S_a predicts is not classified")
@@ -232,6 +235,7 @@ class InspectionSettings:
             "robot_pose_tolerance",
             "floor_stride",
             "icp_max_iterations",
+            "alignment_hypotheses",
             "support_distance",
             "coarse_shift_range",
             "coarse_yaw_range",

@@ -230,7 +230,10 @@ class InspectionPipeline:
         return s.box_margin + s.coarse_shift_range + s.coarse_yaw_range * (reach + 0.3)
 
     def _search_x_y_yaw(self, scan: _Scan, pose: Array) -> tuple[Array, str]:
-        """The coarse x, y, yaw correction of the overhead pose (`coarse_alignment`)."""
+        """The x, y, yaw correction of the overhead pose: a coarse search (`coarse_alignment`); in
+        default mode its best few hypotheses, each refined by a short ICP, the one that puts most
+        points onto S_a's surfaces winning (1 cm cells cannot tell a degree of yaw from a
+        centimetre of shift, and views of few faces have more than one local fit)."""
         s, model = self.settings, self.model
         if not s.coarse_search or model.coarse is None:
             return pose, ""
@@ -251,12 +254,35 @@ class InspectionPipeline:
         enough = s.min_alignment_points // stride**2
         if len(near) < enough:
             return pose, f"alignment failed: only {len(near)} points near the expected structure"
-        coarse = model.coarse.align(near.points, pose[:3, 3])
+        found = model.coarse.hypotheses(near.points, pose[:3, 3], 1 if self.paper else s.alignment_hypotheses)
+        found = [h for h in found if h.on_surface >= 0.25 and h.on_surface_points >= enough]
         scan.timer.lap("coarse")
-        if coarse is None or coarse.on_surface < 0.25 or coarse.on_surface_points < enough:
-            share = 0.0 if coarse is None else coarse.on_surface
-            return pose, f"alignment failed: no x/y/yaw puts the scan on S_a ({share:.0%} of points on it)"
-        return coarse.correction @ pose, ""
+        if not found:
+            return pose, "alignment failed: no x/y/yaw puts the scan on S_a"
+        if len(found) == 1:
+            return found[0].correction @ pose, ""
+        return self._best_fit(scan, [h.correction @ pose for h in found], near.points, pose), ""
+
+    def _best_fit(self, scan: _Scan, poses: list[Array], points: Array, pose: Array) -> Array:
+        """The pose, of `poses` refined by a short ICP each, that puts most of `points` (map frame
+        under `pose`) within a few millimetres of S_a's surfaces."""
+        s, model = self.settings, self.model
+        sample = points[:: max(1, math.ceil(len(points) / s.icp_max_points))]
+        best, best_count = poses[0], -1
+        for start in poses:
+            moved = sample @ (start @ np.linalg.inv(pose))[:3, :3].T + (start @ np.linalg.inv(pose))[:3, 3]
+            inside = np.all((moved >= model.low - s.box_margin) & (moved <= model.high + s.box_margin), axis=1)
+            if inside.sum() < 6:
+                continue
+            icp = self._refine_with_icp(scan, pose=start, points=moved[inside], iterations=5)
+            refined = icp.correction @ start
+            final = sample @ (refined @ np.linalg.inv(pose))[:3, :3].T + (refined @ np.linalg.inv(pose))[:3, 3]
+            closest, _, _ = model.scene.closest_points(final)
+            count = int(np.count_nonzero(np.einsum("ij,ij->i", final - closest, final - closest) <= 0.003**2))
+            if count > best_count:
+                best, best_count = refined, count
+        scan.timer.lap("hypotheses")
+        return best
 
     def _candidates(self, scan: _Scan, pose: Array) -> Candidates:
         """C_1: points near S_a's box, above the floor, not of a robot; masks the robots' pixels."""
@@ -284,7 +310,8 @@ class InspectionPipeline:
         """ICP of `candidates` (and the floor) from `pose`, the checks, the virtual scan and the
         classification. `judged`: the candidates to judge placement on, when ICP used fewer;
         `suspects`: tiles (indices) found misplaced before, refitted whatever the first step says."""
-        icp = self._refine_with_icp(scan, pose=pose, candidates=candidates)
+        icp = self._refine_with_icp(scan, pose=pose, points=candidates.points)
+        scan.timer.lap("icp")
         pose = icp.correction @ pose
         placed = (judged or candidates).moved(icp.correction)
         nearest = None if self.paper else self._nearest_on_structure(placed, used=candidates)
@@ -329,13 +356,14 @@ class InspectionPipeline:
             scan.timer.lap("misplacement")
         return result
 
-    def _refine_with_icp(self, scan: _Scan, pose: Array, candidates: Candidates) -> IcpResult:
-        """Point-to-plane ICP of the candidates against S_a and of the floor sample against the floor."""
+    def _refine_with_icp(self, scan: _Scan, pose: Array, points: Array, iterations: int = 0) -> IcpResult:
+        """Point-to-plane ICP of candidate `points` (map frame under `pose`) against S_a and of the
+        floor sample against the floor; at most `iterations` (0: the setting's)."""
         s = self.settings
         if self.paper:
-            structure_points = candidates.points
+            structure_points = points
         else:
-            structure_points = candidates.points[:: max(1, math.ceil(len(candidates) / s.icp_max_points))]
+            structure_points = points[:: max(1, math.ceil(len(points) / s.icp_max_points))]
         floor = scan.floor
         floor_points = np.zeros((0, 3)) if floor is None else floor.sample @ pose[:3, :3].T + pose[:3, 3]
         on_structure = self._correspondences(pose[:3, 3].copy())
@@ -353,9 +381,8 @@ class InspectionPipeline:
         icp = point_to_plane_icp(
             np.vstack([structure_points, floor_points]),
             correspond,
-            IcpSettings(max_iterations=s.icp_max_iterations),
+            IcpSettings(max_iterations=iterations or s.icp_max_iterations),
         )
-        scan.timer.lap("icp")
         return icp
 
     def _correspondences(self, camera_position: Array) -> Callable[[Array, float], Correspondences]:
@@ -578,11 +605,15 @@ class InspectionPipeline:
 
 def _doubtful(evidence: TileEvidence, settings: InspectionSettings) -> str:
     """Why the pixel evidence says the scan is misaligned, or "". A scan that contradicts most of
-    what S_a predicts is misaligned (a fragment of the structure fitted to the wrong place), or S_a
-    is mostly gone: either way no states from it. So is one in which several tiles are each partly
-    there and partly not: a tile is there or gone, and one moved tile splits one tile, not several."""
+    what S_a predicts is misaligned (a fragment of the structure fitted to the wrong place), unless
+    at least two tiles are clearly there to anchor it (then most of S_a is simply gone). So is one
+    in which several tiles are each partly there and partly not: a tile is there or gone, and one
+    moved tile splits one tile, not several."""
     agree, observed = int(evidence.agree.sum()), int(evidence.observed.sum())
-    if observed >= settings.min_observed_pixels and agree < settings.min_agreement * observed:
+    anchors = (evidence.agree >= 4 * settings.min_observed_pixels) & (
+        evidence.agree >= settings.present_fraction * evidence.observed
+    )
+    if observed >= settings.min_observed_pixels and agree < settings.min_agreement * observed and anchors.sum() < 2:
         return f"the scan agrees with only {agree / observed:.0%} of what S_a predicts"
     decisive = evidence.observed >= settings.min_observed_pixels
     split = decisive & (np.minimum(evidence.agree, evidence.against) >= 0.25 * evidence.observed)

@@ -33,6 +33,7 @@ Array = NDArray[np.float64]
 FLOOR = -1  # VirtualScan.tile value of pixels that see the floor
 NOTHING = -2  # ... and of pixels whose ray hits nothing (or is outside the sensor's range)
 NO_TILE = -3  # `blocked`: ignore no tile
+UNSEEN = -4  # SurfaceLayer.tile of the behind layer on tile pixels not looked behind (depth NaN)
 
 
 @dataclass(frozen=True)
@@ -150,13 +151,14 @@ class VirtualScene:
     ) -> VirtualScan:
         """`virtual` with its `behind` layer: on every tile pixel (of `where`, window-sized), the
         first surface along the ray that belongs to anything but that pixel's tile (another tile,
-        the floor, or nothing), as the camera would see it with that tile gone. Elsewhere the layer
-        repeats the front one."""
+        the floor, or nothing), as the camera would see it with that tile gone; UNSEEN (depth
+        NaN) on the other tile pixels. Off the tiles the layer repeats the front one."""
         wanted = virtual.tile >= 0 if where is None else (virtual.tile >= 0) & where
         on_tile = np.flatnonzero(wanted.reshape(-1))
-        depth = virtual.depth.copy()
-        tile = virtual.tile.copy()
-        cosine = virtual.cos_incidence.copy()
+        unseen = (virtual.tile >= 0) & ~wanted
+        depth = np.where(unseen, np.float32(np.nan), virtual.depth)
+        tile = np.where(unseen, UNSEEN, virtual.tile)
+        cosine = np.where(unseen, np.float32(0.0), virtual.cos_incidence)
         if len(on_tile):
             directions = (camera.rays[virtual.rows, virtual.cols].reshape(-1, 3)[on_tile]) @ pose[
                 :3, :3
