@@ -15,8 +15,7 @@ explains the blank as well, and the Kinect leaves such blanks around unexpected 
 - where they are nearer than the camera's range: no depth at all, a blank blob. So tile i's blank
   must end where tile i's image ends: a blank that runs on, in the few pixels around it, over
   pixels where the scene with every tile there would surely return (and that are no depth edge of
-  it), or that leaves hardly any return around the tile, is some occluder's, and none of tile i's
-  blanks count.
+  it), is some occluder's, and none of tile i's blanks count.
 """
 
 from __future__ import annotations
@@ -38,8 +37,7 @@ Mask = NDArray[np.bool_]
 class BlankSettings:
     outline: int = 2  # px around an unexpected thing's outline where blanks say nothing
     ring: int = 4  # px around a tile's blanks that must not be unexplained blanks ...
-    ring_share: float = 0.1  # ... beyond this share of them (and 2 px) ...
-    ring_returns: float = 0.25  # ... and returns on at least this share of the ring
+    ring_share: float = 0.1  # ... beyond this share of them (and 2 px)
 
 
 def blank_evidence(
@@ -70,15 +68,15 @@ def blank_evidence(
     unexplained = blank & returns.present_returns & smooth
     for index in np.unique(tile[candidate]):
         mine = candidate & (tile == index)
-        if not _ends_with_the_tile(mine, tile == index, blank, unexplained, settings):
+        if not _ends_with_the_tile(mine, tile == index, unexplained, settings):
             candidate &= ~mine
     return candidate
 
 
-def _ends_with_the_tile(mine: Mask, tile: Mask, blank: Mask, unexplained: Mask, settings: BlankSettings) -> bool:
+def _ends_with_the_tile(mine: Mask, tile: Mask, unexplained: Mask, settings: BlankSettings) -> bool:
     """Whether the tile's blank is a hole the size of the tile: within `ring` px around its blank
-    pixels (off the tile), few unexplained blanks, and returns on a good share of the pixels (a
-    blank that swallows everything around the tile is something in front of the camera)."""
+    pixels (off the tile), few blanks where a return was sure (a blank that swallows the tile's
+    surroundings is something in front of the camera)."""
     rows, cols = np.nonzero(mine)
     r = settings.ring
     top, bottom = max(0, rows.min() - r), min(mine.shape[0], rows.max() + r + 1)
@@ -86,8 +84,7 @@ def _ends_with_the_tile(mine: Mask, tile: Mask, blank: Mask, unexplained: Mask, 
     window = (slice(top, bottom), slice(left, right))
     ring = ndimage.binary_dilation(mine[window], iterations=r) & ~tile[window]
     odd = int(np.count_nonzero(ring & unexplained[window]))
-    returns = int(np.count_nonzero(ring & ~blank[window]))
-    return odd <= max(2.0, settings.ring_share * len(rows)) and returns >= settings.ring_returns * ring.sum()
+    return odd <= max(2.0, settings.ring_share * len(rows))
 
 
 def _in_shadow_of_measured(

@@ -38,8 +38,8 @@ class ReturnSettings:
     min_range: float = 0.5  # m
     max_range: float = 4.5  # m
     range_margin: float = 0.03  # m: this close to a range limit, a return is not sure either way
-    sure_incidence: float = 1.19  # rad (68 deg): surfaces seen less obliquely return
-    blank_incidence: float = 1.33  # rad (76 deg): surfaces seen more obliquely return nothing
+    sure_incidence: float = 1.13  # rad (65 deg): surfaces seen less obliquely return
+    blank_incidence: float = 1.22  # rad (70 deg): surfaces seen more obliquely return nothing
     projector_offset: float = 0.075  # m, the IR projector along the optical x axis (+: right)
 
 

@@ -319,14 +319,16 @@ class InspectionPipeline:
         if failure:
             return scan.failed(failure)
         virtual = self._virtual_scan(scan, pose)
-        masked = self._masked_in_window(scan, virtual, pose)
+        masked = None if scan.masked is None else scan.masked[virtual.rows, virtual.cols]
         against_blank = None
         if not self.paper:
             virtual = self.model.scene.look_behind(
                 virtual, scan.camera, pose, where=judgeable(virtual, self.evidence_settings, masked)
             )
             scan.timer.lap("look behind")
-            against_blank = self._blanks_against_tiles(scan, virtual, pose, masked)
+            robots = self._robots_in_front(scan, virtual, pose)
+            unknown = masked if robots is None else robots if masked is None else masked | robots
+            against_blank = self._blanks_against_tiles(scan, virtual, pose, unknown)
         evidence = pixel_evidence(
             scan.cloud, virtual, len(self.model), self.evidence_settings, against_blank, masked
         )
@@ -453,18 +455,18 @@ class InspectionPipeline:
         scan.timer.lap("raycast")
         return virtual
 
-    def _masked_in_window(self, scan: _Scan, virtual: VirtualScan, pose: Array) -> Mask | None:
-        """Window pixels not to judge: masked ones, and those where a robot the overhead cameras
-        see stands in front of S_a (robots nearer than the camera's range leave no points to mask)."""
-        masked = None if scan.masked is None else scan.masked[virtual.rows, virtual.cols]
+    def _robots_in_front(self, scan: _Scan, virtual: VirtualScan, pose: Array) -> Mask | None:
+        """Window pixels where a robot the overhead cameras see may stand in front of S_a: a blank
+        there may be the robot's (nearer than the camera's range, or its projector shadow). Where
+        the camera measured something, the measurement tells whether the robot is really there."""
         if scan.robots is None:
-            return masked
+            return None
         directions = scan.camera.rays[virtual.rows, virtual.cols] @ pose[:3, :3].T.astype(np.float32)
-        hidden = scan.robots.depth(pose[:3, 3], directions) < virtual.depth
-        return hidden if masked is None else masked | hidden
+        return scan.robots.depth(pose[:3, 3], directions) < virtual.depth
 
-    def _blanks_against_tiles(self, scan: _Scan, virtual: VirtualScan, pose: Array, masked: Mask | None) -> Mask:
-        """Blank pixels that only "the tile is gone" explains (`expected_returns`, `blank_evidence`)."""
+    def _blanks_against_tiles(self, scan: _Scan, virtual: VirtualScan, pose: Array, robots: Mask | None) -> Mask:
+        """Blank pixels that only "the tile is gone" explains (`expected_returns`, `blank_evidence`);
+        `robots`: pixels of robots, measured or where the overhead cameras put them."""
         depth = scan.cloud[..., 2]
         blank = ~np.isfinite(depth[virtual.rows, virtual.cols])  # only blanks need the returns
         returns = expect_returns(
@@ -478,7 +480,7 @@ class InspectionPipeline:
             returns,
             scan.camera,
             self.evidence_settings.returns.projector_offset,
-            other if masked is None else other | masked,
+            other if robots is None else other | robots,
             smooth(virtual.depth),
         )
         scan.timer.lap("blank evidence")
