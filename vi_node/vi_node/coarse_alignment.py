@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from vi_node.icp import yaw_shift_transform
 from vi_node.raycast import VirtualScene
@@ -131,16 +132,17 @@ class CoarseAligner:
         # (yaws, nx, ny): sum_v M(v) K(v + s) for every shift s
         score = scipy.fft.irfft2(spectrum.sum(axis=1), s=(nx, ny), workers=2)
         score = np.where(self.window[None], score, -np.inf)
-        best = np.max(score.reshape(len(self.yaws), -1), axis=1)
-        # best first; among equal scores the smaller turn
-        order = np.lexsort((np.abs(self.yaws), -np.round(best, 6)))[:count]
-        return [self._result(int(h), score[h], ix[h], iy[h], iz, pivot) for h in order]
+        # distinct peaks of (yaw, shift), best first; among equal scores the smaller turn
+        peak = score >= ndimage.maximum_filter(score, size=(3, 5, 5), mode=("nearest", "wrap", "wrap"))
+        h, cells = np.nonzero(peak.reshape(len(self.yaws), -1) & np.isfinite(score.reshape(len(self.yaws), -1)))
+        values = score.reshape(len(self.yaws), -1)[h, cells]
+        order = np.lexsort((np.abs(self.yaws[h]), -np.round(values, 6)))[:count]
+        return [self._result(int(h[k]), int(cells[k]), ix[h[k]], iy[h[k]], iz, pivot) for k in order]
 
     def _result(
-        self, h: int, score: Array, ix: NDArray[np.int64], iy: NDArray[np.int64], iz: NDArray[np.int64], pivot: Array
+        self, h: int, cell: int, ix: NDArray[np.int64], iy: NDArray[np.int64], iz: NDArray[np.int64], pivot: Array
     ) -> CoarseResult:
         nx, ny, _ = self.shape
-        cell = int(np.argmax(score))
         shift = np.array([self.shift_x[cell // ny], self.shift_y[cell % ny]], dtype=float) * self.settings.cell
         ux, uy = ix + self.shift_x[cell // ny], iy + self.shift_y[cell % ny]
         ok = (ux >= 0) & (ux < nx) & (uy >= 0) & (uy < ny)

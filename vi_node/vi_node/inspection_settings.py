@@ -140,6 +140,9 @@ class InspectionSettings:
         ROBOTS.position_error, "default: overhead localization error of the other robots (m) ..."
     )
     robot_yaw_error: float = _setting(ROBOTS.yaw_error, "default: ... and of their heading (rad)")
+    robot_surface_gap: float = _setting(
+        0.02, "default: points inside a robot's box but this close to S_a's surfaces (m) are kept"
+    )
     tall_margin: float = _setting(
         ROBOTS.tall_margin, "default: points this far above the structure's top belong to something else (m)"
     )
@@ -262,6 +265,7 @@ class InspectionSettings:
             "min_observed_pixels",
             "robot_position_error",
             "robot_yaw_error",
+            "robot_surface_gap",
             "tall_margin",
         )
         for name in non_negative:

@@ -285,14 +285,18 @@ class InspectionPipeline:
         return best
 
     def _candidates(self, scan: _Scan, pose: Array) -> Candidates:
-        """C_1: points near S_a's box, above the floor, not of a robot; masks the robots' pixels."""
+        """C_1: points near S_a's box, above the floor, not of a robot (inside a robot's box, grown by
+        its localization error, and off S_a's surfaces); masks the robots' pixels."""
         s, model = self.settings, self.model
         candidates = select_candidates(
             scan.cloud, scan.camera, pose, model.low, model.high, s.box_margin, s.floor_clearance
         )
         if scan.robots is not None:
             robot = inside_robots(candidates.points, scan.robots.robots, self.robot_settings)
-            if robot.any():
+            if robot.any():  # a point on S_a's surfaces is a tile's, however near a robot it lies
+                closest, _, _ = model.scene.closest_points(candidates.points[robot])
+                gap = candidates.points[robot] - closest
+                robot[robot] = np.einsum("ij,ij->i", gap, gap) > s.robot_surface_gap**2
                 if scan.masked is None:
                     scan.masked = np.zeros(scan.cloud.shape[:2], dtype=bool)
                 scan.masked.reshape(-1)[candidates.pixels[robot]] = True
@@ -606,17 +610,18 @@ class InspectionPipeline:
 
 
 def _doubtful(evidence: TileEvidence, settings: InspectionSettings) -> str:
-    """Why the pixel evidence says the scan is misaligned, or "". A scan that contradicts most of
-    what S_a predicts is misaligned (a fragment of the structure fitted to the wrong place), unless
-    at least two tiles are clearly there to anchor it (then most of S_a is simply gone). So is one
-    in which several tiles are each partly there and partly not: a tile is there or gone, and one
-    moved tile splits one tile, not several."""
-    agree, observed = int(evidence.agree.sum()), int(evidence.observed.sum())
-    anchors = (evidence.agree >= 4 * settings.min_observed_pixels) & (
-        evidence.agree >= settings.present_fraction * evidence.observed
-    )
-    if observed >= settings.min_observed_pixels and agree < settings.min_agreement * observed and anchors.sum() < 2:
-        return f"the scan agrees with only {agree / observed:.0%} of what S_a predicts"
+    """Why the pixel evidence says the scan is misaligned, or "". The pixels measured where S_a has
+    a surface (agreeing with a tile, or fitting both "there" and "gone") show the alignment fits. A
+    scan that contradicts most of what S_a predicts is misaligned (a fragment of the structure
+    fitted to the wrong place), unless at least two tiles clearly fit to anchor it (then most of S_a
+    is simply gone). So is one in which several tiles are each partly there and partly not: a tile
+    is there or gone, and one moved tile splits one tile, not several."""
+    fits = evidence.agree + evidence.ambiguous
+    seen = fits + evidence.against
+    anchors = (fits >= 4 * settings.min_observed_pixels) & (fits >= settings.present_fraction * seen)
+    if seen.sum() >= settings.min_observed_pixels and fits.sum() < settings.min_agreement * seen.sum():
+        if anchors.sum() < 2:
+            return f"the scan agrees with only {fits.sum() / seen.sum():.0%} of what S_a predicts"
     decisive = evidence.observed >= settings.min_observed_pixels
     split = decisive & (np.minimum(evidence.agree, evidence.against) >= 0.25 * evidence.observed)
     if split.sum() >= 2 and split.sum() >= 0.25 * decisive.sum():

@@ -41,7 +41,7 @@ class RobotMaskSettings:
     position_error: float = 0.05  # m, overhead localization error of a robot, up to
     yaw_error: float = 0.175  # rad (10 deg), ... and of its heading
     tall_margin: float = 0.03  # m above the structure's top: higher points belong to something else
-    tall_widen: float = 0.02  # m around the footprint of tall things
+    tall_widen: float = 0.01  # m around the footprint of tall things (lateral noise, sparse rows)
     cell: float = 0.01  # m, grid of the footprint
 
 
