@@ -108,6 +108,23 @@ class _Scan:
         return candidates.subset(~self.masked.reshape(-1)[candidates.pixels])
 
 
+@dataclass(frozen=True)
+class _Away:
+    """Boxes (map frame under the camera pose `camera`) whose points an alignment leaves out."""
+
+    camera: Array
+    boxes: list[tuple[Array, Array]]
+
+    def outside(self, points: Array, pose: Array) -> Mask:
+        """Which `points` (map frame under the camera pose `pose`) lie outside every box."""
+        move = self.camera @ np.linalg.inv(pose)
+        placed = points @ move[:3, :3].T + move[:3, 3]
+        keep = np.ones(len(points), dtype=bool)
+        for low, high in self.boxes:
+            keep &= ~np.all((placed >= low) & (placed <= high), axis=1)
+        return keep
+
+
 class InspectionPipeline:
     """The visual inspection of one structure; `inspect` runs one scan."""
 
@@ -156,10 +173,10 @@ class InspectionPipeline:
             return failure
         if robots and not self.paper:
             scan.robots = RobotBoxes(robots, self.robot_settings)
-        pose = self._level_with_floor(scan)
+        level = self._level_with_floor(scan)
         if not self.paper:
-            self._mask_tall_things(scan, pose)
-        pose, failure = self._search_x_y_yaw(scan, pose)
+            self._mask_tall_things(scan, level)
+        pose, failure = self._search_x_y_yaw(scan, level)
         if failure:
             return scan.failed(failure)
         candidates = self._candidates(scan, pose)
@@ -168,7 +185,7 @@ class InspectionPipeline:
         result = self._align_and_classify(scan, pose=pose, candidates=candidates)
         if self.paper or not result.ok or not result.moved_tiles():
             return result
-        return self._judge_again_without_moved_tiles(scan, pose=pose, candidates=candidates, first=result)
+        return self._judge_again_without_moved_tiles(scan, level=level, first=result)
 
     # -- stages -----------------------------------------------------------------------------------
     def _start(self, cloud: NDArray[np.float32], overhead: OverheadPose) -> tuple[_Scan | None, ScanResult]:
@@ -229,7 +246,7 @@ class InspectionPipeline:
         reach = float(np.linalg.norm(0.5 * (model.low + model.high) - pose[:3, 3]))
         return s.box_margin + s.coarse_shift_range + s.coarse_yaw_range * (reach + 0.3)
 
-    def _search_x_y_yaw(self, scan: _Scan, pose: Array) -> tuple[Array, str]:
+    def _search_x_y_yaw(self, scan: _Scan, pose: Array, away: _Away | None = None) -> tuple[Array, str]:
         """The x, y, yaw correction of the overhead pose: a coarse search (`coarse_alignment`); in
         default mode its best few hypotheses, each refined by a short ICP, the one that puts most
         points onto S_a's surfaces winning (1 cm cells cannot tell a degree of yaw from a
@@ -250,6 +267,8 @@ class InspectionPipeline:
             stride,
         )
         near = scan.keep(near)
+        if away is not None:
+            near = near.subset(away.outside(near.points, pose))
         scan.timer.lap("candidates")
         enough = s.min_alignment_points // stride**2
         if len(near) < enough:
@@ -279,8 +298,8 @@ class InspectionPipeline:
             final = sample @ (refined @ np.linalg.inv(pose))[:3, :3].T + (refined @ np.linalg.inv(pose))[:3, 3]
             closest, _, _ = model.scene.closest_points(final)
             count = int(np.count_nonzero(np.einsum("ij,ij->i", final - closest, final - closest) <= 0.003**2))
-            if count > best_count:
-                best, best_count = refined, count
+            if count > best_count:  # the full ICP starts from the hypothesis, not from this short one
+                best, best_count = start, count
         scan.timer.lap("hypotheses")
         return best
 
@@ -337,11 +356,6 @@ class InspectionPipeline:
             scan.cloud, virtual, len(self.model), self.evidence_settings, against_blank, masked
         )
         scan.timer.lap("evidence")
-        # a scan that contradicts most of what S_a predicts is misaligned (a fragment of the structure
-        # fitted to the wrong place), or S_a is mostly gone: either way no states from it
-        doubt = _doubtful(evidence, self.settings)
-        if doubt:
-            return scan.failed(f"alignment doubtful: {doubt}")
         result = ScanResult(
             ok=True,
             camera_pose=pose,
@@ -360,6 +374,11 @@ class InspectionPipeline:
             assert nearest is not None
             self._judge_placement(nearest[0], pose, result, suspects)
             scan.timer.lap("misplacement")
+        moved = [self.model.tile_ids.index(t) for t in result.moved_tiles()]
+        doubt = _doubtful(evidence, self.settings, moved)
+        if doubt and not moved:  # with tiles found moved, the alignment without them decides
+            return scan.failed(f"alignment doubtful: {doubt}")
+        result.doubt = doubt
         return result
 
     def _refine_with_icp(self, scan: _Scan, pose: Array, points: Array, iterations: int = 0) -> IcpResult:
@@ -572,27 +591,30 @@ class InspectionPipeline:
             if misplaced:
                 tile.state, tile.offset = TileState.MISPLACED, fit.offset
 
-    def _judge_again_without_moved_tiles(
-        self, scan: _Scan, pose: Array, candidates: Candidates, first: ScanResult
-    ) -> ScanResult:
-        """A misplaced tile pulls the alignment towards where it lies: align once more, from the
-        coarse fit, without the points around the tiles found misplaced, and judge everything again."""
+    def _judge_again_without_moved_tiles(self, scan: _Scan, level: Array, first: ScanResult) -> ScanResult:
+        """A misplaced tile pulls the alignment towards where it lies: search and align once more,
+        from the floor-levelled prior, without the points around the tiles found misplaced, and
+        judge everything again."""
         assert first.camera_pose is not None
         model = self.model
-        placed = candidates.moved(first.camera_pose @ np.linalg.inv(pose))  # the first ICP's
-        keep = np.ones(len(candidates), dtype=bool)
         moved = first.moved_tiles()
+        boxes = []
         for tile_id in moved:
             index = model.tile_ids.index(tile_id)
             offset = first.misplacement[tile_id][1]
             reach = self.misplacement_settings.reach + math.hypot(offset[0], offset[1])
-            low, high = model.patches.tile_low[index] - reach, model.patches.tile_high[index] + reach
-            keep &= ~np.all((placed.points >= low) & (placed.points <= high), axis=1)
+            boxes.append((model.patches.tile_low[index] - reach, model.patches.tile_high[index] + reach))
+        away = _Away(first.camera_pose, boxes)
+        pose, failure = self._search_x_y_yaw(scan, level, away)
+        if failure:
+            return self._unless_all_moved(first, scan)
+        candidates = self._candidates(scan, pose)
+        keep = away.outside(candidates.points, pose)
         if keep.sum() < self.settings.min_alignment_points:
             return self._unless_all_moved(first, scan)
         second = self._align_and_classify(
             scan,
-            pose=pose,  # from the coarse fit again: the first ICP may have been dragged off
+            pose=pose,
             candidates=candidates.subset(keep),
             judged=candidates,
             suspects=[model.tile_ids.index(t) for t in moved],
@@ -601,7 +623,10 @@ class InspectionPipeline:
 
     def _unless_all_moved(self, result: ScanResult, scan: _Scan) -> ScanResult:
         """No states from a scan in which many tiles seem moved: a misalignment, far more likely than
-        several tiles misplaced at once (or the whole structure was pushed: S_a no longer fits)."""
+        several tiles misplaced at once (or the whole structure was pushed: S_a no longer fits); nor
+        from one whose pixels doubt the alignment."""
+        if result.ok and result.doubt:
+            return scan.failed(f"alignment doubtful: {result.doubt}")
         judged = len(result.misplacement)
         moved = len(result.moved_tiles())
         if moved >= 2 and moved >= 0.25 * judged:
@@ -609,13 +634,14 @@ class InspectionPipeline:
         return result
 
 
-def _doubtful(evidence: TileEvidence, settings: InspectionSettings) -> str:
+def _doubtful(evidence: TileEvidence, settings: InspectionSettings, moved: Sequence[int] = ()) -> str:
     """Why the pixel evidence says the scan is misaligned, or "". The pixels measured where S_a has
     a surface (agreeing with a tile, or fitting both "there" and "gone") show the alignment fits. A
     scan that contradicts most of what S_a predicts is misaligned (a fragment of the structure
     fitted to the wrong place), unless at least two tiles clearly fit to anchor it (then most of S_a
     is simply gone). So is one in which several tiles are each partly there and partly not: a tile
-    is there or gone, and one moved tile splits one tile, not several."""
+    is there or gone, and one moved tile splits one tile, not several (tiles found `moved`, by
+    index, are left out)."""
     fits = evidence.agree + evidence.ambiguous
     seen = fits + evidence.against
     anchors = (fits >= 4 * settings.min_observed_pixels) & (fits >= settings.present_fraction * seen)
@@ -623,6 +649,7 @@ def _doubtful(evidence: TileEvidence, settings: InspectionSettings) -> str:
         if anchors.sum() < 2:
             return f"the scan agrees with only {fits.sum() / seen.sum():.0%} of what S_a predicts"
     decisive = evidence.observed >= settings.min_observed_pixels
+    decisive[list(moved)] = False
     split = decisive & (np.minimum(evidence.agree, evidence.against) >= 0.25 * evidence.observed)
     if split.sum() >= 2 and split.sum() >= 0.25 * decisive.sum():
         return f"{int(split.sum())} of {int(decisive.sum())} tiles seen are each partly there and partly not"

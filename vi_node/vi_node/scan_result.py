@@ -58,6 +58,7 @@ class ScanResult:
     evidence_states: NDArray[np.int64] | None = None  # states from the counts alone (no misplacement)
     misplacement: dict[int, tuple[bool, tuple[float, float, float], float]] = field(default_factory=dict)
     scan_count: int = 1  # scans fused into `tiles`
+    doubt: str = ""  # why the pixels doubt the alignment (a result kept only to judge it once more)
 
     def by_id(self) -> dict[int, TileResult]:
         return {t.tile_id: t for t in self.tiles}
