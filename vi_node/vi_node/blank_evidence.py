@@ -15,7 +15,8 @@ explains the blank as well, and the Kinect leaves such blanks around unexpected 
 - where they are nearer than the camera's range: no depth at all, a blank blob. So tile i's blank
   must end where tile i's image ends: a blank that runs on, in the few pixels around it, over
   pixels where the scene with every tile there would surely return (and that are no depth edge of
-  it), is some occluder's, and none of tile i's blanks count.
+  it), more than a few of them or more than return there, is some occluder's, and none of tile i's
+  blanks count.
 """
 
 from __future__ import annotations
@@ -65,26 +66,27 @@ def blank_evidence(
     if unexpected.any():
         candidate &= ~ndimage.binary_dilation(unexpected, iterations=settings.outline)
     candidate &= ~_in_shadow_of_measured(candidate, depth, virtual, camera, projector_offset)
-    unexplained = blank & returns.present_returns & smooth
+    sure = returns.present_returns & smooth
     for index in np.unique(tile[candidate]):
         mine = candidate & (tile == index)
-        if not _ends_with_the_tile(mine, tile == index, unexplained, settings):
+        if not _ends_with_the_tile(mine, tile == index, blank, sure, settings):
             candidate &= ~mine
     return candidate
 
 
-def _ends_with_the_tile(mine: Mask, tile: Mask, unexplained: Mask, settings: BlankSettings) -> bool:
+def _ends_with_the_tile(mine: Mask, tile: Mask, blank: Mask, sure: Mask, settings: BlankSettings) -> bool:
     """Whether the tile's blank is a hole the size of the tile: within `ring` px around its blank
-    pixels (off the tile), few blanks where a return was sure (a blank that swallows the tile's
-    surroundings is something in front of the camera)."""
+    pixels (off the tile), few blanks where a return was `sure`, and fewer of those than returns
+    (a blank that swallows the tile's surroundings is something in front of the camera)."""
     rows, cols = np.nonzero(mine)
     r = settings.ring
     top, bottom = max(0, rows.min() - r), min(mine.shape[0], rows.max() + r + 1)
     left, right = max(0, cols.min() - r), min(mine.shape[1], cols.max() + r + 1)
     window = (slice(top, bottom), slice(left, right))
-    ring = ndimage.binary_dilation(mine[window], iterations=r) & ~tile[window]
-    odd = int(np.count_nonzero(ring & unexplained[window]))
-    return odd <= max(2.0, settings.ring_share * len(rows))
+    ring = ndimage.binary_dilation(mine[window], iterations=r) & ~tile[window] & sure[window]
+    odd = int(np.count_nonzero(ring & blank[window]))
+    returned = int(np.count_nonzero(ring & ~blank[window]))
+    return odd <= max(2.0, settings.ring_share * len(rows)) and (odd < 3 or odd <= returned)
 
 
 def _in_shadow_of_measured(

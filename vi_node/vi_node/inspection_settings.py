@@ -92,7 +92,13 @@ class InspectionSettings:
     coarse_shift_range: float = _setting(0.10, "coarse search +- this in x and y (m)")
     icp_max_iterations: int = _setting(10, "ICP iterations at most (the paper: 10)")
     alignment_hypotheses: int = _setting(
-        3, "default: best x/y/yaw hypotheses of the coarse search refined before the best fit is kept"
+        3, "default: best x/y/yaw hypotheses of the coarse search refined before the best fit is kept ..."
+    )
+    ambiguity: float = _setting(
+        0.95, "default: ... unless another fit, 3 cm or 2 deg away, puts this share as many points on S_a"
+    )
+    min_fit_points: int = _setting(
+        100, "default: the best fit must put this many of its (at most icp_max_points) points on S_a"
     )
     min_alignment_points: int = _setting(60, "a scan with fewer aligned candidates is not classified")
     min_alignment_inliers: float = _setting(0.6, "fraction of candidates that must lie on S_a after ICP")
@@ -261,6 +267,7 @@ class InspectionSettings:
             "box_margin",
             "min_support",
             "min_alignment_points",
+            "min_fit_points",
             "depth_margin",
             "min_observed_pixels",
             "robot_position_error",
@@ -275,6 +282,7 @@ class InspectionSettings:
             "ratio_threshold",
             "min_alignment_inliers",
             "min_agreement",
+            "ambiguity",
             "min_observed_fraction",
             "present_fraction",
             "present_share",

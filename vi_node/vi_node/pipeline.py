@@ -44,7 +44,7 @@ from vi_node.icp import Correspondences, IcpResult, IcpSettings, point_to_plane_
 from vi_node.inspection_settings import InspectionSettings
 from vi_node.misplacement import PlacementContext, ScanPoints, assess, confirmed_by_pixels
 from vi_node.patches import PlanarPatches
-from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior
+from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior, pose_error
 from vi_node.raycast import VirtualScan, VirtualScene
 from vi_node.robot_mask import RobotBoxes, inside_robots, tall_things
 from vi_node.scan_result import ScanResult, TileResult
@@ -280,28 +280,43 @@ class InspectionPipeline:
             return pose, "alignment failed: no x/y/yaw puts the scan on S_a"
         if len(found) == 1:
             return found[0].correction @ pose, ""
-        return self._best_fit(scan, [h.correction @ pose for h in found], near.points, pose), ""
+        return self._best_fit(scan, [h.correction @ pose for h in found], near.points, pose)
 
-    def _best_fit(self, scan: _Scan, poses: list[Array], points: Array, pose: Array) -> Array:
+    def _best_fit(self, scan: _Scan, poses: list[Array], points: Array, pose: Array) -> tuple[Array, str]:
         """The pose, of `poses` refined by a short ICP each, that puts most of `points` (map frame
-        under `pose`) within a few millimetres of S_a's surfaces."""
+        under `pose`) within a few millimetres of S_a's surfaces; or why none can be trusted: another
+        fit, 3 cm or 2 degrees away, explains the points nearly as well (a view of a few faces
+        of a repetitive structure), or too few points fit at all."""
         s, model = self.settings, self.model
         sample = points[:: max(1, math.ceil(len(points) / s.icp_max_points))]
-        best, best_count = poses[0], -1
+        fits: list[tuple[int, Array, Array]] = []  # (count, start, refined)
         for start in poses:
-            moved = sample @ (start @ np.linalg.inv(pose))[:3, :3].T + (start @ np.linalg.inv(pose))[:3, 3]
+            move = start @ np.linalg.inv(pose)
+            moved = sample @ move[:3, :3].T + move[:3, 3]
             inside = np.all((moved >= model.low - s.box_margin) & (moved <= model.high + s.box_margin), axis=1)
             if inside.sum() < 6:
                 continue
-            icp = self._refine_with_icp(scan, pose=start, points=moved[inside], iterations=5)
-            refined = icp.correction @ start
-            final = sample @ (refined @ np.linalg.inv(pose))[:3, :3].T + (refined @ np.linalg.inv(pose))[:3, 3]
+            refined = self._refine_with_icp(scan, pose=start, points=moved[inside], iterations=5).correction @ start
+            move = refined @ np.linalg.inv(pose)
+            final = sample @ move[:3, :3].T + move[:3, 3]
             closest, _, _ = model.scene.closest_points(final)
-            count = int(np.count_nonzero(np.einsum("ij,ij->i", final - closest, final - closest) <= 0.003**2))
-            if count > best_count:  # the full ICP starts from the hypothesis, not from this short one
-                best, best_count = start, count
+            on_surface = np.einsum("ij,ij->i", final - closest, final - closest) <= 0.003**2
+            fits.append((int(np.count_nonzero(on_surface)), start, refined))
         scan.timer.lap("hypotheses")
-        return best
+        if not fits:
+            return poses[0], ""
+        fits.sort(key=lambda fit: -fit[0])
+        count, start, refined = fits[0]
+        if count < s.min_fit_points:
+            return start, f"alignment failed: only {count} points fit S_a's surfaces"
+        for other, _, elsewhere in fits[1:]:
+            shift, turn = pose_error(elsewhere, refined)
+            if (shift > 0.03 or turn > math.radians(2.0)) and other >= s.ambiguity * count:
+                return start, (
+                    f"alignment ambiguous: fits {shift * 100:.0f} cm / {math.degrees(turn):.0f} deg apart explain "
+                    f"{count} and {other} points"
+                )
+        return start, ""  # the full ICP starts from the hypothesis, not from this short refinement
 
     def _candidates(self, scan: _Scan, pose: Array) -> Candidates:
         """C_1: points near S_a's box, above the floor, not of a robot (inside a robot's box, grown by
