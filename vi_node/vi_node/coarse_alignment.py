@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from vi_node.icp import yaw_shift_transform
 from vi_node.raycast import VirtualScene
@@ -36,6 +35,7 @@ class CoarseSettings:
     surface_band: float = 0.005  # m, points this close to S_a's surface count as on it
     off_penalty: float = 0.5  # what a point away from S_a (within its footprint) costs, relative to one on it
     footprint_margin: float = 0.02  # m around S_a's box where points away from its surfaces cost
+    peak_spacing: int = 2  # hypotheses differ by more than this many yaw steps or shift cells
     max_points: int = 3000
 
 
@@ -132,12 +132,31 @@ class CoarseAligner:
         # (yaws, nx, ny): sum_v M(v) K(v + s) for every shift s
         score = scipy.fft.irfft2(spectrum.sum(axis=1), s=(nx, ny), workers=2)
         score = np.where(self.window[None], score, -np.inf)
-        # distinct peaks of (yaw, shift), best first; among equal scores the smaller turn
-        peak = score >= ndimage.maximum_filter(score, size=(3, 5, 5), mode=("nearest", "wrap", "wrap"))
-        h, cells = np.nonzero(peak.reshape(len(self.yaws), -1) & np.isfinite(score.reshape(len(self.yaws), -1)))
+        chosen = self._distinct_peaks(score, count)
+        return [self._result(h, cell, ix[h], iy[h], iz, pivot) for h, cell in chosen]
+
+    def _distinct_peaks(self, score: Array, count: int) -> list[tuple[int, int]]:
+        """The `count` best (yaw index, flat shift cell) pairs, each at least `peak_spacing` yaw
+        steps or shift cells from the ones before it (greedy non-maximum suppression; plateaus of
+        equal scores give one pair, the smaller turn first)."""
+        s = self.settings
+        _, ny, _ = self.shape
+        h, cells = np.nonzero(np.isfinite(score.reshape(len(self.yaws), -1)))
         values = score.reshape(len(self.yaws), -1)[h, cells]
-        order = np.lexsort((np.abs(self.yaws[h]), -np.round(values, 6)))[:count]
-        return [self._result(int(h[k]), int(cells[k]), ix[h[k]], iy[h[k]], iz, pivot) for k in order]
+        order = np.lexsort((np.abs(self.yaws[h]), -np.round(values, 6)))
+        h, cells = h[order], cells[order]
+        sx, sy = self.shift_x[cells // ny], self.shift_y[cells % ny]
+        chosen: list[tuple[int, int]] = []
+        alive = np.ones(len(h), dtype=bool)
+        while len(chosen) < count and alive.any():
+            k = int(np.argmax(alive))
+            chosen.append((int(h[k]), int(cells[k])))
+            alive &= ~(
+                (np.abs(h - h[k]) <= s.peak_spacing)
+                & (np.abs(sx - sx[k]) <= s.peak_spacing)
+                & (np.abs(sy - sy[k]) <= s.peak_spacing)
+            )
+        return chosen
 
     def _result(
         self, h: int, cell: int, ix: NDArray[np.int64], iy: NDArray[np.int64], iz: NDArray[np.int64], pivot: Array

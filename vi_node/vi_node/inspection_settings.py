@@ -98,7 +98,7 @@ class InspectionSettings:
         0.95, "default: ... unless another fit, 3 cm or 2 deg away, puts this share as many points on S_a"
     )
     min_fit_points: int = _setting(
-        100, "default: the best fit must put this many of its (at most icp_max_points) points on S_a"
+        25, "default: the best fit must put this many of its (at most icp_max_points) points on S_a"
     )
     min_alignment_points: int = _setting(60, "a scan with fewer aligned candidates is not classified")
     min_alignment_inliers: float = _setting(0.6, "fraction of candidates that must lie on S_a after ICP")
