@@ -495,7 +495,10 @@ def _tile_type(name: str, spec: Any) -> TileType:
         pts = np.array([_vector(p, 3, f"{where}: vertex") for p in convex["vertices"]])
         if len(pts) < 4:
             raise InputError(f"{where}: a convex tile needs at least 4 vertices")
-        solid = solid_from_points(pts)
+        try:
+            solid = solid_from_points(pts)
+        except InputError as error:
+            raise InputError(f"{where}: {error}") from None
         if len(solid.vertices) != len(pts):
             raise InputError(f"{where}: vertices are not those of a convex polytope (some lie inside)")
         pieces = [pts]
@@ -503,7 +506,10 @@ def _tile_type(name: str, spec: Any) -> TileType:
     allpts = np.vstack(pieces)
     ext = allpts.max(axis=0) - allpts.min(axis=0)
     for piece in pieces:
-        solid_from_points(piece)  # fails on a flat piece
+        try:
+            solid_from_points(piece)  # fails on a flat piece
+        except InputError as error:
+            raise InputError(f"{where}: {error}") from None
     size = (round(ext[0] * 100, 1), round(ext[1] * 100, 1), round(ext[2] * 100, 1))
     return TileType(name, pieces, height, size)
 
@@ -530,6 +536,21 @@ def place(tile_id: int, ttype: TileType, position: Any, rotation: NDArray[np.flo
     )
 
 
+class _DuplicateKeyError(Exception):
+    pass
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing a key given twice in one mapping."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        keys = [self.construct_object(k, deep=deep) for k, _ in node.value]
+        for key in keys:
+            if keys.count(key) > 1:
+                raise _DuplicateKeyError(f"key {key!r} given twice (line {node.start_mark.line + 1})")
+        return super().construct_mapping(node, deep=deep)
+
+
 def load_structure(path_text: str) -> Structure:
     path = Path(path_text)
     if not path.suffix and not path.exists():
@@ -537,7 +558,9 @@ def load_structure(path_text: str) -> Structure:
     if not path.is_file():
         raise InputError(f"{path_text}: no such structure file (nor {STRUCTURE_DIR}/{path_text}.yaml)")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=_StrictLoader)  # a SafeLoader
+    except _DuplicateKeyError as error:
+        raise InputError(f"{path}: {error}") from None
     except (yaml.YAMLError, UnicodeDecodeError) as error:
         raise InputError(f"{path}: not valid YAML: {str(error).splitlines()[0]}") from None
     try:
@@ -560,6 +583,9 @@ def _structure(path: Path, data: Any) -> Structure:
     if not isinstance(tiles_spec, list) or not tiles_spec:
         raise InputError("'tiles' must be a non-empty list")
     types = {str(name): _tile_type(str(name), spec) for name, spec in types_spec.items()}
+    caches = data.get("caches") or {}
+    if not isinstance(caches, dict) or any(str(k) not in types for k in caches):
+        raise InputError(f"caches must map known tile types to [x, y], got {caches!r}")
     tiles: dict[int, Tile] = {}
     explicit: dict[int, list[int]] = {}
     for entry in tiles_spec:
