@@ -1202,9 +1202,9 @@ class SceneBuilder:
             others = [(ROBOT, sd) for r in robots for sd in r.solids]
             others += [(CLUTTER, sd) for c in self.clutter for sd in c.solids]
             scan = simulate_kinect(tiles_now + others, optical, rng, self.model, self.center)
-            planned = cast(tiles_planned + others, optical[:3, 3], optical[:3, :3],
-                           np.tile(np.arange(WIDTH, dtype=float), HEIGHT),
-                           np.repeat(np.arange(HEIGHT, dtype=float), WIDTH), self.center)
+            grid_u = np.tile(np.arange(WIDTH, dtype=float), HEIGHT)
+            grid_v = np.repeat(np.arange(HEIGHT, dtype=float), WIDTH)
+            planned = cast(tiles_planned + others, optical[:3, 3], optical[:3, :3], grid_u, grid_v, self.center)
             robot_records = []
             for r in robots:
                 rx, ry, ryaw = overhead_error(rng, True)
@@ -1219,6 +1219,13 @@ class SceneBuilder:
             returns = dict(zip(ret_labels.tolist(), ret_counts.tolist(), strict=True))
             plab, pcounts = np.unique(planned.label, return_counts=True)
             planned_px = dict(zip(plab.tolist(), pcounts.tolist(), strict=True))
+            # pixels of the planned tile that would give a return for sure: in range, below the grazing onset
+            p_theta = incidence(planned, camera_rays(optical[:3, :3], grid_u, grid_v))
+            sure = (planned.depth >= MIN_RANGE) & (planned.depth <= MAX_RANGE) & (
+                p_theta < math.radians(self.model.grazing_onset_deg)
+            )
+            slab_, scounts = np.unique(planned.label[sure], return_counts=True)
+            planned_sure = dict(zip(slab_.tolist(), scounts.tolist(), strict=True))
             scans.append({
                 "index": k,
                 "stamp": stamp,
@@ -1237,6 +1244,7 @@ class SceneBuilder:
                 "tile_pixels": {str(t): int(seen.get(t, 0)) for t in self.expected},
                 "tile_returns": {str(t): int(returns.get(t, 0)) for t in self.expected},
                 "expected_tile_pixels": {str(t): int(planned_px.get(t, 0)) for t in self.expected},
+                "expected_tile_returnable": {str(t): int(planned_sure.get(t, 0)) for t in self.expected},
                 "returns": int(scan.valid.sum()),
                 "label_pixels": {"floor": int(seen.get(FLOOR, 0)), "clutter": int(seen.get(CLUTTER, 0)),
                                  "robot": int(seen.get(ROBOT, 0)), "nothing": int(seen.get(NOTHING, 0))},

@@ -14,7 +14,8 @@ and its JSON lines are compared with the truth. Tallies per scene set and per ti
 
 - removed tiles: detected ("missing") / undetermined ("occluded", not reported, or the scan
   failed) / called present ("present" or "misplaced": both say the tile is there); also among the
-  removed tiles a scan could have seen (>= 40 pixels of it in a render of the expected structure);
+  removed tiles a scan could have seen ("visible": >= 40 pixels of it in a render of the expected
+  structure that would surely give returns: in range, incidence below the grazing onset);
 - present tiles (at their planned pose): called missing, called misplaced;
 - misplaced tiles, by kind: flagged "misplaced" in some single view among the views that see it
   (>= 40 pixels with a return on it), scans calling it present, scans calling it missing, and the
@@ -163,6 +164,14 @@ def fused_line(lines: list[dict[str, Any] | None]) -> dict[str, Any] | None:
     return None
 
 
+def visible(scan: dict[str, Any], tile: int) -> bool:
+    """Whether the scan could have seen the tile had it been there: >= SEEN_PIXELS of it in a render of
+    the expected structure (with the robots and clutter) that give a return for sure (in range, incidence
+    below the grazing onset)."""
+    counts = scan.get("expected_tile_returnable", scan.get("expected_tile_pixels", {}))
+    return int(counts.get(str(tile), 0)) >= SEEN_PIXELS
+
+
 def type_key(truth: dict[str, Any], tile: int) -> str:
     name = truth["tile_types"][str(tile)]
     size = truth.get("type_sizes_cm", {}).get(name)
@@ -203,7 +212,7 @@ def score_scene(tally: Tally, truth: dict[str, Any], single: list[dict[str, Any]
             outcome = removed_outcome(state_of(line, tile))
             tally.add("single", set_name, tk, "removed")
             tally.add("single", set_name, tk, f"removed_{outcome}")
-            if scans[k].get("expected_tile_pixels", {}).get(str(tile), 0) >= SEEN_PIXELS:
+            if visible(scans[k], tile):
                 visible_any = True
                 tally.add("single", set_name, tk, "removed_visible")
                 tally.add("single", set_name, tk, f"removed_visible_{outcome}")
