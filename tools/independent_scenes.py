@@ -56,7 +56,7 @@ CLOUD_TOPIC = "/vi/camera/depth/points"
 POSE_TOPIC = "/vi/overhead_pose"
 
 # labels of the label image
-NOTHING, FLOOR, CLUTTER, ROBOT = -1, 0, -2, -3
+NOTHING, FLOOR, CLUTTER, ROBOT, WALL = -1, 0, -2, -3, -4
 
 ROBOT_SIZE = (0.33, 0.33, 0.35)
 VI_BASE_RADIUS = 0.18  # the VI robot's round base (m), kept clear of robots and clutter
@@ -947,6 +947,7 @@ class SceneBuilder:
         self.set = scene_set
         self.rng = rng
         self.model = model
+        self.room: float | None = None  # walls of a square room this far from the structure's centre
 
     # structure state ------------------------------------------------------------------------
     def choose_tiles(self) -> None:
@@ -1179,6 +1180,15 @@ class SceneBuilder:
             return item
         raise _LayoutError("no room for clutter")
 
+    def walls(self) -> list[Solid]:
+        """Four walls, 10 cm thick and 2.5 m high, `room` m from the structure's centre (none by default)."""
+        if not self.room:
+            return []
+        h, (cx, cy) = self.room, self.center
+        span = (0.1, 2 * h + 0.2, 2.5)
+        return [box_solid(cx + dx * (h + 0.05), cy + dy * (h + 0.05), 0.0 if dx else math.pi / 2, span)
+                for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1))]
+
     # scans ----------------------------------------------------------------------------------
     def scans(self) -> list[dict[str, Any]]:
         rng = self.rng
@@ -1201,6 +1211,7 @@ class SceneBuilder:
                 robots.append(self.near_robots[k])
             others = [(ROBOT, sd) for r in robots for sd in r.solids]
             others += [(CLUTTER, sd) for c in self.clutter for sd in c.solids]
+            others += [(WALL, sd) for sd in self.walls()]
             scan = simulate_kinect(tiles_now + others, optical, rng, self.model, self.center)
             grid_u = np.tile(np.arange(WIDTH, dtype=float), HEIGHT)
             grid_v = np.repeat(np.arange(HEIGHT, dtype=float), WIDTH)
@@ -1247,7 +1258,8 @@ class SceneBuilder:
                 "expected_tile_returnable": {str(t): int(planned_sure.get(t, 0)) for t in self.expected},
                 "returns": int(scan.valid.sum()),
                 "label_pixels": {"floor": int(seen.get(FLOOR, 0)), "clutter": int(seen.get(CLUTTER, 0)),
-                                 "robot": int(seen.get(ROBOT, 0)), "nothing": int(seen.get(NOTHING, 0))},
+                                 "robot": int(seen.get(ROBOT, 0)), "wall": int(seen.get(WALL, 0)),
+                                 "nothing": int(seen.get(NOTHING, 0))},
                 "dropouts": scan.dropouts,
                 "_cloud": scan.points,
                 "_robots": robots,
@@ -1352,10 +1364,11 @@ def relative(path: Path) -> str:
 
 
 def make_scene(structure: Structure, scene_set: SceneSet, seed: int, index: int, model: KinectModel,
-               folder: Path) -> dict[str, Any]:
+               folder: Path, room: float | None = None) -> dict[str, Any]:
     rng = scene_rng(seed, scene_set.name, structure.name, index)
     for _attempt in range(50):
         builder = SceneBuilder(structure, scene_set, rng, model)
+        builder.room = room
         try:
             builder.choose_tiles()
             builder.layout()
@@ -1396,6 +1409,7 @@ def make_scene(structure: Structure, scene_set: SceneSet, seed: int, index: int,
         "rests_on": {str(t): sorted(v) for t, v in sorted(structure.rests_on.items())},
         "structure_center": [round(float(v), 5) for v in builder.center],
         "clutter": [c.record() for c in builder.clutter],
+        "room_half_size": room,
         "scans": [{k: v for k, v in s.items() if not k.startswith("_")} for s in scans],
     }
     (folder / "truth.json").write_text(json.dumps(truth, indent=1) + "\n", encoding="utf-8")
@@ -1420,6 +1434,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sets", default="all", help=f"'all' or comma-separated of: {', '.join(SCENE_SETS)}")
     p.add_argument("--grazing-onset", type=float, default=70.0, help="deg: returns start to fail here")
     p.add_argument("--grazing-cutoff", type=float, default=77.0, help="deg: no returns beyond")
+    p.add_argument("--room", type=float, default=None, metavar="HALF",
+                   help="walls of a square room HALF m from the structure's centre (default: none, an open floor; "
+                   "for sensitivity checks, not part of the scene sets)")
     return p
 
 
@@ -1447,6 +1464,8 @@ def _run(args: argparse.Namespace) -> int:
     structures = [load_structure(n.strip()) for n in args.structures.split(",") if n.strip()]
     if not structures:
         raise InputError("--structures names no structure")
+    if args.room is not None and not 2.0 <= args.room <= 15.0:
+        raise InputError(f"--room must be 2-15 m (the robots stand up to 1.8 m from the centre), got {args.room}")
     model = KinectModel(grazing_onset_deg=args.grazing_onset, grazing_cutoff_deg=args.grazing_cutoff)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
@@ -1461,7 +1480,7 @@ def _run(args: argparse.Namespace) -> int:
                 if folder.exists() and not (folder / "truth.json").exists():
                     raise InputError(f"{folder} exists and is not a scene of this generator; not overwriting it")
                 t0 = time.monotonic()
-                truth = make_scene(structure, SCENE_SETS[set_name], args.seed, index, model, folder)
+                truth = make_scene(structure, SCENE_SETS[set_name], args.seed, index, model, folder, args.room)
                 done += 1
                 print(f"[{done}/{total}] {set_name} {structure.name} #{index}: expected {len(truth['expected'])}, "
                       f"removed {truth['removed']}, misplaced {[m['id'] for m in truth['misplaced']]} "
