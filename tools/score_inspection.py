@@ -2,7 +2,7 @@
 """Score `ros2 run vi_node classify` on the scenes of `tools/independent_scenes.py`, as a user runs it.
 
     tools/workspace-env python tools/score_inspection.py --scenes DIR [--views 3] [--params FILE]
-        [--json OUT] [--classify-arg ARG ...] [--ros2 "CMD"] [--sets NAME,...]
+        [--json OUT] [--ros2 "CMD"] [--sets NAME,...] [--classify-arg ARG ...]
 
 For every scene folder under DIR (a rosbag2 folder with `truth.json`) the real command runs twice
 as a subprocess, with the nominal mount of the scene's set and S_a = the tiles claimed placed:
@@ -62,8 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--views", type=int, default=3, help="use the first this many scans of every bag (default 3)")
     p.add_argument("--params", default=None, help="parameter file passed to classify (--params)")
     p.add_argument("--json", default=None, help="write every tally to this file")
-    p.add_argument("--classify-arg", action="append", default=[], metavar="ARG",
-                   help="extra argument for classify (repeat; e.g. --classify-arg=--mode --classify-arg=paper)")
+    p.add_argument("--classify-arg", nargs=argparse.REMAINDER, default=[], metavar="ARG",
+                   help="every argument after this one goes to classify (last; e.g. --classify-arg --mode paper)")
     p.add_argument("--ros2", default=f"{REPO / 'tools' / 'workspace-env'} ros2",
                    help="the ros2 command (default: tools/workspace-env ros2)")
     p.add_argument("--sets", default="all", help="only these scene sets (comma-separated; default all)")
