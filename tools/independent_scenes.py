@@ -16,6 +16,18 @@ no Open3D) and the sensor model is written from HARDWARE.md, so that nothing is 
 Frames: `map` is z up, floor at z = 0; `base_link` x forward, z up; `camera_link` x forward, y left,
 z up; `camera_depth_optical_frame` z forward, x right, y down (camera_link -> optical: rpy
 (-pi/2, 0, -pi/2)). Lengths in m, angles in rad unless a name says deg.
+
+Model choices worth knowing when reading the numbers:
+- the world is an open 30 m floor (no walls unless --room): behind a tile at the low camera's
+  height there is often nothing in range, so a removed tile there leaves "no return", not
+  "see-through";
+- per pixel: a first noiseless cast at the pixel centre (labels, incidence, depth edges), then the
+  measured depth from a ray displaced by the lateral noise, axial noise, integer disparity, mm;
+- no return: out of 0.5-4.5 m, grazing (ramp from --grazing-onset to --grazing-cutoff), p = 0.5
+  next to a depth jump of more than max(1 cm, 4 disparity steps), the projector's shadow, 0.1 %
+  speckle;
+- a misplaced tile must stay supported (its bottom's centroid over a tile under it) and must not
+  overlap another present tile.
 """
 
 from __future__ import annotations
