@@ -93,6 +93,7 @@ def test_generator_writes_a_readable_bag_with_truth_and_the_scorer_scores_it(tmp
         z = cloud[:, :, 2]
         nan = np.isnan(z)
         assert 0.05 < nan.mean() < 0.95  # grazing floor, shadows, edges, speckle
+        assert nan[0].all()  # the top row looks over everything at the floor beyond range (and beyond 77 deg)
         assert int((~nan).sum()) == scan["returns"]
         assert np.all((z[~nan] >= 0.5) & (z[~nan] <= 4.5))
         assert np.array_equal(np.isnan(cloud[:, :, 0]), nan)
