@@ -216,6 +216,8 @@ class AuctionNode(Node):
         self.announce(support, AuctionAnnouncement.REASON_FOUND_MISSING)
 
     def on_tile_states(self, msg: TileStateArray) -> None:
+        if msg.problem:  # a scan that gave no states says nothing about any tile
+            return
         detected = time.time()
         fresh = self.repeats.fresh_states(msg.states)
         sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states if s.tile_id in fresh}

@@ -12,7 +12,6 @@ base, they would both command ``cmd_vel``.)
 
 from __future__ import annotations
 
-import threading
 import time
 
 from geometry_msgs.msg import Twist
@@ -23,6 +22,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool
 
 from hardware_drivers.base_navigation import GoToPose, GoToPoseParams
+from hardware_drivers.goal_slot import GoalSlot
 from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
 from hardware_drivers.node_support import declare, positive, require, run_node
 from hardware_drivers.planar_pose import Pose2D
@@ -51,7 +51,7 @@ class BaseNavigatorNode(Node):
             self.create_subscription(Bool, name, lambda m, n=name: self.hazards.__setitem__(n, m.data), 10,
                                      callback_group=group)
         self.cmd_vel = self.create_publisher(Twist, "cmd_vel", 10)
-        self._busy = threading.Lock()
+        self.slot = GoalSlot()
         self.server = ActionServer(self, NavigateTo, "navigate_to", execute_callback=self.execute,
                                    goal_callback=self.on_goal, cancel_callback=self.on_cancel,
                                    callback_group=group)
@@ -61,7 +61,7 @@ class BaseNavigatorNode(Node):
         if frame not in ("", self.frame):
             self.get_logger().error(f"navigate_to goal in frame '{frame}' rejected (expected '{self.frame}')")
             return GoalResponse.REJECT
-        if not self._busy.acquire(blocking=False):
+        if not self.slot.reserve():
             self.get_logger().warning("navigate_to goal rejected: already driving to another goal")
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
@@ -71,11 +71,14 @@ class BaseNavigatorNode(Node):
         return CancelResponse.ACCEPT
 
     def execute(self, goal_handle) -> NavigateTo.Result:
+        if not self.slot.start():
+            goal_handle.abort()
+            return NavigateTo.Result(success=False, message="already driving to another goal")
         try:
             success, message = self._drive(goal_handle)
         finally:
             self.cmd_vel.publish(Twist())
-            self._busy.release()
+            self.slot.finish()
         result = NavigateTo.Result(success=success, message=message)
         result.final_pose.header.frame_id = self.frame
         result.final_pose.header.stamp = self.get_clock().now().to_msg()

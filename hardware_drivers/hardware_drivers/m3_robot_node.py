@@ -42,6 +42,7 @@ from hardware_drivers.arm_kinematics import ArmGeometry
 from hardware_drivers.base_navigation import GoToPoseParams
 from hardware_drivers.crustcrawler_arm_node import declare_arm_description
 from hardware_drivers.device_health import DeviceHealth, Level
+from hardware_drivers.goal_slot import GoalSlot
 from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
 from hardware_drivers.node_support import (
@@ -102,7 +103,7 @@ class M3RobotNode(Node):
         self._bumper = False
         self._wheel_drop = False
         self._device_status: dict[str, tuple[int, str, dict[str, str]]] = {}
-        self._busy = False
+        self.slot = GoalSlot()
         self.cmd_vel = self.create_publisher(Twist, "cmd_vel", 10)
         self.trajectory = self.create_publisher(JointTrajectory, "joint_trajectory", 10)
         self.create_subscription(LaserScan, "scan", self.on_scan, qos_profile_sensor_data,
@@ -295,11 +296,9 @@ class M3RobotNode(Node):
 
     # ------------------------------------------------------------------ the action
     def on_goal(self, goal: PlaceTile.Goal) -> GoalResponse:
-        with self._lock:
-            if self._busy:
-                self.get_logger().warning(f"goal for tile {goal.tile_id} rejected: a placement is under way")
-                return GoalResponse.REJECT
-            self._busy = True
+        if not self.slot.reserve():
+            self.get_logger().warning(f"goal for tile {goal.tile_id} rejected: a placement is under way")
+            return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
     def on_cancel(self, goal_handle) -> CancelResponse:
@@ -312,7 +311,7 @@ class M3RobotNode(Node):
             result = self._execute(goal_handle, request)
         finally:
             with self._lock:
-                self._busy = False
+                self.slot = GoalSlot()
         message = PlaceTile.Result()
         message.error_code = int(result.outcome)
         message.message = result.message

@@ -13,7 +13,7 @@ from tiling_sim.inspection_scenarios import Scene, misplace_tile, view_from
 from tiling_sim.kinect import KinectSimulator
 from vi_node.classify import TileState
 from vi_node.inspection_settings import InspectionSettings
-from vi_node.misplacement import moved_tile
+from vi_node.misplacement import MisplacementSettings, TileFit, confirmed_by_pixels, moved_tile
 from vi_node.patches import turn_symmetry
 from vi_node.pipeline import InspectionPipeline
 from vi_node.pose_prior import OverheadPose
@@ -87,3 +87,13 @@ def test_no_tile_of_an_intact_structure_is_flagged() -> None:
             for t in result.tiles
             if t.state not in (TileState.PRESENT, TileState.OCCLUDED)
         ]
+
+
+def test_a_refit_of_a_tile_that_is_gone_is_not_a_misplacement() -> None:
+    """The surfaces behind a removed tile can look like its faces slipped aside; a tile that slipped
+    still covers part of its place, so some of its pixels agree with it there."""
+    settings = MisplacementSettings()
+    moved = TileFit(points=200, residual=0.02, judged=True, misplaced=True, offset=(0.03, 0.0, 0.0))
+    assert confirmed_by_pixels(moved, agree=120, disagree=80, settings=settings)
+    assert not confirmed_by_pixels(moved, agree=0, disagree=150, settings=settings, blank=40)
+    assert not confirmed_by_pixels(moved, agree=5, disagree=100, settings=settings, blank=20)

@@ -21,6 +21,8 @@ def test_accuracy_script_prints_the_paper_style_tables(tmp_path: Path) -> None:
         "1",
         "--structures",
         "paper_14",
+        "--conditions",
+        "paper,robot_near",
         "--png",
         str(png),
     )
@@ -34,11 +36,13 @@ def test_accuracy_script_prints_the_paper_style_tables(tmp_path: Path) -> None:
         "misplaced tiles (default mode, single views)",
     ):
         assert title in out
-    assert len(re.findall(r"  all\s+\d+\s+\d+ \(", out)) == 4
+    for condition in ("paper", "robot_near"):
+        assert f"== condition {condition}:" in out
+    assert len(re.findall(r"  all\s+\d+\s+\d+ \(", out)) == 8  # 4 tables per condition
     assert "paper (Worcester et al.)      22" in out
     assert re.search(r"alignment: \d+/\d+ scans aligned", out)
     assert re.search(r"present tiles flagged MISPLACED: +\d+", out)
-    assert "3/3 scenes" in result.stderr  # progress
+    assert "6/6 scenes" in result.stderr  # progress over both conditions
     assert png.stat().st_size > 10_000
 
 

@@ -275,9 +275,13 @@ def test_bad_input_and_the_expected_structure_over_ros(probe: Probe) -> None:
             PointField(name="y", offset=4, datatype=7, count=1),
         ]
         send(no_z, lambda: any("no z field" in m for m in probe.diagnostics))
-        assert probe.states == []  # nothing wrong was published
+        # every bad scan is answered with no states and why (the simulated camera waits for answers)
+        assert all(not m.states and m.problem for m in probe.states), probe.states
+        assert any("no z field" in m.problem for m in probe.states)
+        probe.states.clear()
 
         send(cloud, lambda: len(probe.states) == 1)
+        assert probe.states[0].problem == ""
         assert sorted(s.tile_id for s in probe.states[0].states) == [1, 2, 3, 4, 5, 6, 7, 12]
         announcement = AuctionAnnouncement(tile_id=12, reason=AuctionAnnouncement.REASON_MISSING)
         announcement.header.stamp.sec = 50

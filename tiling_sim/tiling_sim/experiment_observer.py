@@ -34,6 +34,7 @@ from tiling_sim.trial_record import (
     Scan,
     StatusSample,
     TrialRecord,
+    Verdict,
     WorldEvent,
 )
 
@@ -98,6 +99,14 @@ class ExperimentObserver(Node):
         if kind == "started":
             self.world_started = True
             return
+        if kind == "scan_judged":
+            self.record.verdicts.append(
+                Verdict(float(data["t"]), float(data["wall_delay"]), str(data.get("problem", "")))
+            )
+            return
+        if kind == "scan_unjudged":
+            self.record.unjudged_scans.append(float(data["scan_t"]))
+            return
         event = WorldEvent(t=float(data["t"]), kind=kind, tile=int(data.get("tile", 0)),
                            robot=str(data.get("robot", "")), reason=str(data.get("reason", "")))
         self.record.events.append(event)
@@ -116,6 +125,8 @@ class ExperimentObserver(Node):
         ))
 
     def on_states(self, msg: TileStateArray) -> None:
+        if msg.problem:
+            return  # a scan with no states: the world's verdict event records it
         states = {s.tile_id: STATE_NAMES.get(s.state, "unknown") for s in msg.states}
         # fused states repeat what earlier scans saw: a tile's counts change when this scan saw it
         counts = {s.tile_id: (s.scan_count, s.physical_support, s.see_through_support) for s in msg.states}

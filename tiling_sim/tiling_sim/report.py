@@ -9,7 +9,9 @@ re-placements marked).
 from __future__ import annotations
 
 import json
+import re
 import statistics
+from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -125,6 +127,19 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
             f"Makespan with faults: median {statistics.median(faulty):.0f} s, "
             f"range {min(faulty):.0f}-{max(faulty):.0f} s over {len(faulty)} trials"
         )
+    verdicts = [v for r in result.records for v in r.verdicts]
+    if verdicts:
+        failed = sum(1 for v in verdicts if v.problem)
+        delay_ms = statistics.median(v.wall_delay for v in verdicts) * 1000
+        lines.append(
+            f"Scans: {len(verdicts)} judged, {failed} ({100.0 * failed / len(verdicts):.1f}%) gave no states; "
+            f"scan -> tile states (wall clock): median {delay_ms:.0f} ms"
+        )
+        kinds = Counter(re.sub(r"[-+]?\d+(\.\d+)?", "N", v.problem) for v in verdicts if v.problem)
+        lines.extend(f"  no states: {count} x {kind}" for kind, count in kinds.most_common(4))
+        unjudged = sum(len(r.unjudged_scans) for r in result.records)
+        if unjudged:
+            lines.append(f"  {unjudged} more scans got no answer from vi_node in time")
     latencies = [x for r in result.records for x in r.award_latencies]
     if latencies:
         lines.append(
@@ -277,6 +292,10 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "missing_called_present": stats.missing_called_present,
             "present_called_missing": stats.present_called_missing,
             "auctions": len(record.awards), "award_latencies": record.award_latencies,
+            "scans_judged": len(record.verdicts), "scans_without_states": sum(1 for v in record.verdicts if v.problem),
+            "scan_verdict_delays": [round(v.wall_delay, 4) for v in record.verdicts],
+            "scan_problems": [v.problem for v in record.verdicts if v.problem],
+            "scans_unanswered": len(record.unjudged_scans),
             "plans": [{"revision": p.revision, "tasks": p.tasks} for p in record.plans],
             "placements": [{"t": e.t, "tile": e.tile, "robot": e.robot} for e in record.events if e.kind == "placed"],
             "removals": [

@@ -41,6 +41,15 @@ class Scan:
 
 
 @dataclass(frozen=True)
+class Verdict:
+    """The inspection's answer to one simulated scan: how long it took, and why it had no states."""
+
+    t: float  # s of simulated time of the scan
+    wall_delay: float  # s of wall time from the scan's publication to its verdict on /tile_states
+    problem: str = ""  # empty: classified
+
+
+@dataclass(frozen=True)
 class Announcement:
     t: float
     auction_id: int
@@ -84,6 +93,8 @@ class TrialRecord:
     plans: list[PlanRecord] = field(default_factory=list)
     events: list[WorldEvent] = field(default_factory=list)
     scans: list[Scan] = field(default_factory=list)
+    verdicts: list[Verdict] = field(default_factory=list)
+    unjudged_scans: list[float] = field(default_factory=list)  # s of simulated time of scans never answered
     announcements: list[Announcement] = field(default_factory=list)
     awards: list[AwardRecord] = field(default_factory=list)
     award_latencies: list[float] = field(default_factory=list)  # s of wall time

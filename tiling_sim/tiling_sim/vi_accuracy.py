@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
 from collections import defaultdict
@@ -125,8 +126,8 @@ def score(
 
 
 def failure_kind(reason: str) -> str:
-    """A reason without its numbers, to count alike failures together."""
-    return " ".join(word for word in reason.split() if not any(ch.isdigit() for ch in word))[:70]
+    """A reason with its numbers replaced by N, to count alike failures together."""
+    return re.sub(r"[-+]?\d+(\.\d+)?", "N", reason)[:90]
 
 
 def percent(part: int, whole: int) -> str:

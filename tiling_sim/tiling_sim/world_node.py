@@ -32,7 +32,7 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import PointCloud2, PointField
@@ -48,12 +48,15 @@ from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo, PlaceTile
+from tiling_assembly_msgs.msg import TileStateArray
 from tiling_sim.faults import FaultInjector
 from tiling_sim.kinect import ClutterBox, KinectScene, KinectSimulator, PinholeIntrinsics, camera_pose
 from tiling_sim.robot_motion import MotionModel, drive_time_to_pose, placement_phases, start_positions
+from tiling_sim.sim_clock import Pace, SimClock
 from tiling_sim.world import PhysicalWorld, PlaceCheck
 from vi_node.point_cloud import cloud_bytes, cloud_fields
 
+CAMERA = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 EVENTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
 
@@ -125,15 +128,19 @@ class SimWorld(Node):
         self.robots_in_view = bool(p("robots_in_view").value)
         self.robot_size = tuple(float(v) for v in p("robot_size").value)
 
-        self.sim_now = 0.0
-        self.wall_start = time.monotonic()
-        self.started = not bool(p("wait_for_start").value)
+        self.clock = SimClock(self.real_time_factor)
+        if not bool(p("wait_for_start").value):
+            self.clock.start(time.monotonic())
         self.sleepers: list[tuple[float, int, Callable[[], None]]] = []
         self.sleeper_ids = itertools.count()
         self.lock = threading.RLock()
         self.busy_robots: set[str] = set()
         self.next_scan = self.scan_period
         self.scan_pending = False
+        self.awaiting_verdict: tuple[int, float] | None = None  # (stamp ns, wall s) of the last scan sent
+        self.arrival_scan_due = False  # the next scan is the one the explorer stopped for
+        self.scan_awaited = False  # the scan being rendered or judged is such a scan
+        self.verdict_timeout = float(p("verdict_timeout").value)
         self.complete_reported = False
 
         group = ReentrantCallbackGroup()
@@ -142,7 +149,9 @@ class SimWorld(Node):
         self.overhead_pubs = {
             name: self.create_publisher(PoseStamped, f"/{name}/overhead_pose", 10) for name in [*self.robots, "vi"]
         }
-        self.cloud_pub = self.create_publisher(PointCloud2, "/vi/camera/depth/points", qos_profile_sensor_data)
+        # reliable: Fast DDS loses most fragmented 3.7 MB samples best effort, and the next scan waits
+        # for the verdict on this one (vi_node's sensor_reliability auto follows)
+        self.cloud_pub = self.create_publisher(PointCloud2, "/vi/camera/depth/points", CAMERA)
         self.servers = [
             ActionServer(
                 self, PlaceTile, f"/{robot}/place_tile",
@@ -163,6 +172,7 @@ class SimWorld(Node):
         # one tick at a time: a scan must carry the time of the world it shows
         self.create_timer(self.clock_step, self.tick, clock=steady, callback_group=MutuallyExclusiveCallbackGroup())
         self.create_subscription(Empty, "/sim/start", self.on_start, EVENTS)
+        self.create_subscription(TileStateArray, "/tile_states", self.on_verdict, 10, callback_group=group)
         self.event("started", robots=self.robots, structure=self.structure.name,
                    removal_times=[round(t, 1) for t in self.faults.removal_times])
         self.get_logger().info(
@@ -180,7 +190,8 @@ class SimWorld(Node):
         declare("robot_start_xy", [0.0], "x1, y1, x2, y2, ... start positions of the robots in map (m); "
                 "fewer than 2 numbers: spread on a circle around the structure.")
         declare("vi_start_pose", [1.0, 0.0, math.pi], "x, y, yaw of the VI robot's base at the start.")
-        declare("real_time_factor", 20.0, "How much faster than the wall clock simulated time runs.")
+        declare("real_time_factor", 20.0, "How much faster than the wall clock simulated time runs (at the wall "
+                "clock's pace while a scan awaits vi_node's verdict: the inspection's real cost).")
         declare("clock_step", 0.005, "s of wall-clock time between two /clock messages.")
         declare("drive_speed", 0.15, "Base speed, m/s.")
         declare("turn_speed", 1.0, "Base turning speed, rad/s.")
@@ -200,6 +211,8 @@ class SimWorld(Node):
         declare("overhead_position_error", 0.05, "Largest overhead localization error, m.")
         declare("overhead_yaw_error_deg", 10.0, "Largest overhead heading error, degrees.")
         declare("scan_period", 1.0, "s of simulated time between two Kinect scans while the VI robot stands.")
+        declare("verdict_timeout", 3.0, "The next scan waits for vi_node's verdict on the last one (/tile_states) "
+                "or this many s of wall-clock time: the simulated camera streams what the inspection consumes.")
         # the same names as vi_node's: the runner gives both nodes config/vi_node.yaml
         declare("camera_xyz", [0.08, 0.0, 0.55], "Pose of camera_link in the VI robot's base_link: x, y, z (m).")
         declare("camera_rpy", [0.0, 0.45, 0.0], "Pose of camera_link in base_link: roll, pitch, yaw (rad).")
@@ -222,17 +235,27 @@ class SimWorld(Node):
         return KinectSimulator(intrinsics, seed=int(self.get_parameter("seed").value))
 
     # --- simulated time -----------------------------------------------------------------------
+    @property
+    def sim_now(self) -> float:
+        return self.clock.now
+
+    def pace(self) -> Pace:
+        """The explorer waits at its viewpoint for the scan it stopped for: time stops while the scan
+        is rendered (a Kinect delivers at once) and runs at the wall clock's pace while it is judged."""
+        if not self.scan_awaited:
+            return Pace.FAST
+        if self.scan_pending:
+            return Pace.STOPPED
+        return Pace.REAL if self.awaiting_verdict is not None else Pace.FAST
+
     def on_start(self, _msg: Empty) -> None:
-        if not self.started:
-            self.started = True
-            self.wall_start = time.monotonic()
+        if not self.clock.running:
+            self.clock.start(time.monotonic())
             self.get_logger().info("start: simulated time runs")
 
     def tick(self) -> None:
         with self.lock:
-            if self.started:
-                self.sim_now = (time.monotonic() - self.wall_start) * self.real_time_factor
-            now = self.sim_now
+            now = self.clock.advance(time.monotonic(), self.pace())
             msg = ClockMsg()
             msg.clock.sec = int(now)
             msg.clock.nanosec = int((now % 1.0) * 1e9)
@@ -388,15 +411,35 @@ class SimWorld(Node):
         self.overhead_errors["vi"] = OverheadError.draw(self.rng, self.max_position_error, self.max_yaw_error)
         self.vi_moving = False
         self.next_scan = self.sim_now + 0.2  # let the base settle before the next scan
+        self.arrival_scan_due = True
         result = NavigateTo.Result(success=True)
         result.final_pose = self.overhead_pose("vi")
         handle.succeed()
         return result
 
+    def on_verdict(self, msg: TileStateArray) -> None:
+        """vi_node has judged a scan (states or the reason it has none): the camera may take the next."""
+        awaiting = self.awaiting_verdict
+        if awaiting is not None and msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec >= awaiting[0]:
+            self.awaiting_verdict = None
+            self.scan_awaited = False
+            delay = time.monotonic() - awaiting[1]
+            self.event("scan_judged", wall_delay=round(delay, 4), problem=msg.problem)
+
     def maybe_scan(self) -> None:
-        if self.vi_moving or self.scan_pending or self.sim_now < self.next_scan:
+        awaiting = self.awaiting_verdict
+        if awaiting is not None and time.monotonic() - awaiting[1] > self.verdict_timeout:
+            self.awaiting_verdict = None  # no inspection listens, or it is stuck: do not wait for it
+            self.scan_awaited = False
+            self.event("scan_unjudged", scan_t=awaiting[0] * 1e-9)
+            self.get_logger().warn(f"no verdict on the scan of t={awaiting[0] * 1e-9:.2f} s within "
+                                   f"{self.verdict_timeout:g} s: taking the next one")
+        if self.vi_moving or self.scan_pending or self.awaiting_verdict is not None or self.sim_now < self.next_scan:
             return
+        if self.cloud_pub.get_subscription_count() == 0:
+            return  # nobody looks: rendering would only cost
         self.next_scan = self.sim_now + self.scan_period
+        self.scan_awaited, self.arrival_scan_due = self.arrival_scan_due, False
         self.scan_pending = True
         with self.lock:
             present = sorted(self.world.present)
@@ -422,6 +465,7 @@ class SimWorld(Node):
             msg.fields = [PointField(name=n, offset=o, datatype=d, count=c) for n, o, d, c in cloud_fields()]
             msg.data = cloud_bytes(cloud)
             if self.context.ok():  # not shut down while the frame was rendered
+                self.awaiting_verdict = (stamp.sec * 10**9 + stamp.nanosec, time.monotonic())
                 self.cloud_pub.publish(msg)
         except Exception as error:
             if self.context.ok():

@@ -2,7 +2,7 @@
 
     ros2 run vi_node classify --structure FILE --bag DIR [--expected all|ID,ID,...] [--params FILE]
         [--camera-xyz X,Y,Z] [--camera-rpy R,P,Y] [--intrinsics FX,FY,CX,CY] [--mode default|paper]
-        [--no-fuse]
+        [--no-fuse] [--jobs N]
 
 Reads `/vi/camera/depth/points` (sensor_msgs/PointCloud2) and `/vi/overhead_pose`
 (geometry_msgs/PoseStamped) from a rosbag2 folder (MCAP or SQLite, as `ros2 bag record` or
@@ -26,8 +26,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import multiprocessing
+import os
+import signal
 import sys
+from collections import deque
 from collections.abc import Iterator
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -235,6 +240,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="print every scan's own states (default: fused over the bag's scans, as the node publishes)",
     )
     parser.add_argument(
+        "--jobs",
+        type=int,
+        default=min(2, len(os.sched_getaffinity(0))),
+        help="worker processes inspecting scans side by side (default: this machine's cores, at most 2)",
+    )
+    parser.add_argument(
         "--mode",
         choices=["default", "paper"],
         default=None,
@@ -286,35 +297,102 @@ def _run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
-    pipeline = InspectionPipeline(structure, expected, settings)
-    fusion = TileFusion(pipeline.evidence_settings, paper_rules=settings.mode == "paper")
+    fusion = TileFusion(settings.evidence(), paper_rules=settings.mode == "paper")
     fuse = settings.fuse_scans and not args.no_fuse
-    tolerance = int(settings.pose_tolerance * 1e9)
     try:
-        recording = read_recording(args.bag)
-        for scan in recording.scans:
-            result: ScanResult | None = None
-            error = scan.problem
-            if not error and scan.frame_id and scan.frame_id != OPTICAL_FRAME:
-                error = f"cloud frame is '{scan.frame_id}', expected '{OPTICAL_FRAME}'"
-            if not error:
-                match = recording.poses.nearest(scan.stamp_ns, tolerance)
-                if match is None:
-                    error = f"no overhead pose within {settings.pose_tolerance:g} s of the scan"
-                else:
-                    assert scan.cloud is not None
-                    robots = recording.team.at(scan.stamp_ns, int(settings.robot_pose_tolerance * 1e9))
-                    result = pipeline.inspect(scan.cloud, match[0], robots)
-                    error = "" if result.ok else result.reason
-                    if fuse:
-                        result = fuse_scan(fusion, result)
-            if error:
-                print(f"scan at {scan.stamp_ns / 1e9:.3f} s: {error}", file=sys.stderr)
-            print(json.dumps(result_json(scan.stamp_ns, result, error, pixels=not pipeline.paper)), flush=True)
+        with ScanInspector(args.structure, expected, settings, args.jobs) as inspector:
+            for scan, result, error in inspector.judge(read_recording(args.bag)):
+                if result is not None and fuse:
+                    result = fuse_scan(fusion, result)
+                if error:
+                    print(f"scan at {scan.stamp_ns / 1e9:.3f} s: {error}", file=sys.stderr)
+                line = result_json(scan.stamp_ns, result, error, pixels=settings.mode != "paper")
+                print(json.dumps(line), flush=True)
     except BagError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
     return 0
+
+
+_worker_pipeline: InspectionPipeline | None = None
+
+
+def _start_worker(structure_file: str, expected: list[int] | None, settings: InspectionSettings) -> None:
+    """A worker process: its own pipeline; Ctrl-C is the parent's to handle."""
+    global _worker_pipeline
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _worker_pipeline = InspectionPipeline(load_structure(structure_file), expected, settings)
+
+
+def _inspect_in_worker(cloud: NDArray[np.float32], overhead: OverheadPose, robots: list[OverheadPose]) -> ScanResult:
+    assert _worker_pipeline is not None
+    return _worker_pipeline.inspect(cloud, overhead, robots)
+
+
+class ScanInspector:
+    """Inspects a recording's scans, on `jobs` worker processes when more than one (scans are
+    independent until fused; results come back in the bag's order)."""
+
+    def __init__(self, structure_file: str, expected: list[int] | None, settings: InspectionSettings, jobs: int):
+        self.settings = settings
+        self.jobs = max(1, jobs)
+        self.pool: ProcessPoolExecutor | None = None
+        self.pipeline: InspectionPipeline | None = None
+        if self.jobs > 1:
+            context = multiprocessing.get_context("spawn")  # no fork of a process with Open3D's threads
+            self.pool = ProcessPoolExecutor(
+                self.jobs, mp_context=context, initializer=_start_worker, initargs=(structure_file, expected, settings)
+            )
+        else:
+            self.pipeline = InspectionPipeline(load_structure(structure_file), expected, settings)
+
+    def __enter__(self) -> ScanInspector:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def judge(self, recording: Recording) -> Iterator[tuple[RecordedScan, ScanResult | None, str]]:
+        """(scan, result or None, error) per scan, in the recording's order."""
+        pending: deque[tuple[RecordedScan, Future[ScanResult] | ScanResult | None, str]] = deque()
+        for scan in recording.scans:
+            pending.append(self._start(scan, recording))
+            while pending and (len(pending) > 2 * self.jobs or _done(pending[0][1])):
+                yield _finish(*pending.popleft())
+        while pending:
+            yield _finish(*pending.popleft())
+
+    def _start(
+        self, scan: RecordedScan, recording: Recording
+    ) -> tuple[RecordedScan, Future[ScanResult] | ScanResult | None, str]:
+        s = self.settings
+        if scan.problem:
+            return scan, None, scan.problem
+        if scan.frame_id and scan.frame_id != OPTICAL_FRAME:
+            return scan, None, f"cloud frame is '{scan.frame_id}', expected '{OPTICAL_FRAME}'"
+        match = recording.poses.nearest(scan.stamp_ns, int(s.pose_tolerance * 1e9))
+        if match is None:
+            return scan, None, f"no overhead pose within {s.pose_tolerance:g} s of the scan"
+        assert scan.cloud is not None
+        robots = recording.team.at(scan.stamp_ns, int(s.robot_pose_tolerance * 1e9))
+        if self.pool is not None:
+            return scan, self.pool.submit(_inspect_in_worker, scan.cloud, match[0], robots), ""
+        assert self.pipeline is not None
+        return scan, self.pipeline.inspect(scan.cloud, match[0], robots), ""
+
+
+def _done(job: Future[ScanResult] | ScanResult | None) -> bool:
+    return not isinstance(job, Future) or job.done()
+
+
+def _finish(
+    scan: RecordedScan, job: Future[ScanResult] | ScanResult | None, error: str
+) -> tuple[RecordedScan, ScanResult | None, str]:
+    result = job.result() if isinstance(job, Future) else job
+    if result is not None and not result.ok:
+        error = result.reason
+    return scan, result, error
 
 
 if __name__ == "__main__":

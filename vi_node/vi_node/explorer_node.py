@@ -6,13 +6,14 @@ A thin adapter around `exploration.Exploration` and `viewpoint.rank_viewpoints`.
 priority), `/auction/announcements`
 (tiles no longer expected), `/tile_states` (what the scans judged). Out: goals to the base's
 `navigate_to` action. After each arrival it waits for the first tile states of a scan taken there
-(or a timeout, when the scan could not be aligned), then chooses again.
+(vi_node answers every scan: tile states, or why it has none), then chooses again.
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import time
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
@@ -72,8 +73,11 @@ class ExplorerNode(Node):
                       float(declare("max_range", 4.5, "Farthest depth measured (m).")))
         self.radii = [float(r) for r in declare("viewpoint_radii", [0.9, 1.2], "Rings of viewpoints (m).")]
         self.per_ring = int(declare("viewpoints_per_ring", 8, "Viewpoints on each ring."))
-        self.settle = float(declare("settle_time", 0.5, "s after arriving before a scan counts."))
-        self.scan_timeout = float(declare("scan_timeout", 6.0, "s to wait at a viewpoint for tile states."))
+        self.settle = float(declare("settle_time", 0.2, "s after arriving before a scan counts."))
+        self.scan_timeout = float(declare(
+            "scan_timeout", 5.0,
+            "s of wall-clock time to wait at a viewpoint for a scan's verdict (vi_node answers every scan, "
+            "with states or the reason there are none: this only covers a silent vi_node)."))
         travel_cost = float(declare("travel_cost", 0.5, "Priority points one metre of driving costs."))
         if not self.radii or any(r <= 0 for r in self.radii) or self.per_ring < 1:
             raise ValueError("viewpoint_radii must be positive and viewpoints_per_ring at least 1")
@@ -89,7 +93,8 @@ class ExplorerNode(Node):
         self.scene: VirtualScene | None = None  # S_a for ray tracing candidate views
         self.scene_tiles: tuple[int, ...] = ()
         self.here: tuple[float, float, float] | None = None
-        self.arrived_at: float | None = None  # s; None while driving
+        self.arrived_at: float | None = None  # s (node clock); None while driving
+        self.arrived_wall = 0.0  # s (steady clock) of the arrival
         self.driving = False
         self.repeats = RepeatFilter()
 
@@ -153,6 +158,9 @@ class ExplorerNode(Node):
         self.exploration.judged({s.tile_id: STATES.get(s.state, UNKNOWN) for s in msg.states if s.tile_id in seen},
                                 stamp)
         if self.arrived_at is not None and stamp >= self.arrived_at + self.settle:
+            if msg.problem and self.here is not None:  # the scan taken here gave no states
+                self.get_logger().info(f"no tile states from this viewpoint ({msg.problem}); trying another")
+                self.exploration.viewpoint_failed(self.candidates.index(self.here), self.now())
             self.arrived_at = None  # this viewpoint is done
             self.tick()
 
@@ -160,10 +168,11 @@ class ExplorerNode(Node):
         if self.structure is None or self.driving or self.scene is None or not self.scene_tiles:
             return
         now = self.now()
-        if self.arrived_at is not None and now < self.arrived_at + self.scan_timeout:
-            return  # still waiting for a scan from here
+        if self.arrived_at is not None and time.monotonic() < self.arrived_wall + self.scan_timeout:
+            return  # still waiting for the verdict of a scan from here
         if self.arrived_at is not None:
-            self.get_logger().warn("no tile states from this viewpoint (scan not aligned?); trying another")
+            self.get_logger().warn(f"no verdict on a scan from this viewpoint within {self.scan_timeout:g} s; "
+                                   "trying another")
             if self.here is not None:
                 self.exploration.viewpoint_failed(self.candidates.index(self.here), now)
             self.arrived_at = None
@@ -215,7 +224,10 @@ class ExplorerNode(Node):
             self.get_logger().warn(f"could not reach the viewpoint: {result.message}")
             return
         self.here = pose
-        self.arrived_at = self.now()
+        # the base's own time of arrival: this node may hear of it late, and scans count from then
+        arrival = result.final_pose.header.stamp
+        self.arrived_at = arrival.sec + arrival.nanosec * 1e-9 if arrival.sec or arrival.nanosec else self.now()
+        self.arrived_wall = time.monotonic()
 
 
 def main(args: list[str] | None = None) -> int:

@@ -40,6 +40,7 @@ class MisplacementSettings:
     max_turn: float = math.radians(45.0)  # rad, ... (a run-off fit, not a misplaced tile)
     significance: float = 8.0  # a fitted shift must stand this many sigmas clear of zero ...
     turn_significance: float = 7.0  # ... and a fitted turn this many
+    kept_share: float = 0.1  # a tile that slipped still covers part of its place: this share of its pixels agree
 
 
 @dataclass(frozen=True)
@@ -88,11 +89,17 @@ class PlacementContext:
     suspects: Sequence[int] = ()
 
 
-def confirmed_by_pixels(fit: TileFit, agree: int, disagree: int, settings: MisplacementSettings) -> bool:
+def confirmed_by_pixels(
+    fit: TileFit, agree: int, disagree: int, settings: MisplacementSettings, blank: int = 0
+) -> bool:
     """Whether a refit that says "moved" is borne out by the tile's pixels: a tile that moved has left
     some of its expected surface (see-through) or stands in front of it (`disagree` pixels). A shift
-    of 1.5 cm or more shows on a good share of its pixels, a turn of a small tile on a few corners."""
+    of 1.5 cm or more shows on a good share of its pixels, a turn of a small tile on a few corners.
+    And it still covers part of its place (`agree`): a tile that is gone leaves only the surfaces
+    behind it and blanks (`blank`), which a refit can mistake for the tile's faces slipped aside."""
     if not fit.misplaced:
+        return False
+    if agree < max(1.0, settings.kept_share * (agree + disagree + blank)):
         return False
     shifted = math.hypot(fit.offset[0], fit.offset[1]) >= 0.6 * settings.shift
     needed = max(1.0, 0.05 * (agree + disagree)) if shifted else 1.0

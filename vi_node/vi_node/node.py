@@ -32,7 +32,7 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import ColorRGBA
+from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tiling_assembly.geometry import PlacedTile, quaternion_from_rotation
@@ -271,8 +271,8 @@ class ViNode(Node):
 
     def _on_cloud(self, msg: PointCloud2) -> None:
         if self.pending is not None:
-            self._diagnose(
-                DiagnosticStatus.WARN, "dropped a scan: a newer one arrived before its overhead pose"
+            self._unclassified(
+                self.pending, DiagnosticStatus.WARN, "dropped a scan: a newer one arrived before its overhead pose"
             )
         self.pending = msg
         self.pending_since = time.monotonic()
@@ -301,10 +301,8 @@ class ViNode(Node):
             if waited < max(1.0, 2 * self.settings.pose_tolerance):
                 return
             self.pending = None
-            self._diagnose(
-                DiagnosticStatus.WARN,
-                f"dropped a scan: no overhead pose within {self.settings.pose_tolerance:g} s of it",
-            )
+            reason = f"dropped a scan: no overhead pose within {self.settings.pose_tolerance:g} s of it"
+            self._unclassified(msg, DiagnosticStatus.WARN, reason)
             return
         self.pending = None
         robots = self.team.at(stamp, int(self.settings.robot_pose_tolerance * 1e9))
@@ -312,29 +310,26 @@ class ViNode(Node):
 
     def _inspect(self, msg: PointCloud2, overhead: OverheadPose, robots: list[OverheadPose]) -> None:
         if msg.header.frame_id != OPTICAL_FRAME:
-            self._diagnose(
-                DiagnosticStatus.ERROR,
-                f"dropped a scan in frame '{msg.header.frame_id}', expected '{OPTICAL_FRAME}'",
-            )
+            reason = f"dropped a scan in frame '{msg.header.frame_id}', expected '{OPTICAL_FRAME}'"
+            self._unclassified(msg, DiagnosticStatus.ERROR, reason)
             return
         if self.pipeline is None:
-            self._diagnose(
-                DiagnosticStatus.WARN, "dropped a scan: no structure yet (structure_file or /structure)"
-            )
+            reason = "dropped a scan: no structure yet (structure_file or /structure)"
+            self._unclassified(msg, DiagnosticStatus.WARN, reason)
             return
         try:
             cloud = cloud_from_msg(msg)
         except CloudError as error:
-            self._diagnose(DiagnosticStatus.ERROR, f"dropped a scan: {error}")
+            self._unclassified(msg, DiagnosticStatus.ERROR, f"dropped a scan: {error}")
             return
         try:
             result = self.pipeline.inspect(cloud, overhead, robots)
         except Exception as error:
             self.get_logger().error(f"inspection of a scan failed unexpectedly: {error!r}")
-            self._diagnose(DiagnosticStatus.ERROR, f"inspection failed unexpectedly: {error!r}")
+            self._unclassified(msg, DiagnosticStatus.ERROR, f"inspection failed unexpectedly: {error!r}")
             return
         if not result.ok:
-            self._diagnose(DiagnosticStatus.WARN, f"no tile states for this scan: {result.reason}", result)
+            self._unclassified(msg, DiagnosticStatus.WARN, f"no tile states for this scan: {result.reason}", result)
             return
         if self.settings.fuse_scans:
             result = fuse_scan(self.fusion, result)
@@ -344,6 +339,16 @@ class ViNode(Node):
         self.markers_pub.publish(self._markers_msg(msg, result))
         message = f"classified {len(result.tiles)} tiles ({len(robots)} other robots in the scene)"
         self._diagnose(DiagnosticStatus.OK, message, result)
+
+    def _unclassified(
+        self, scan: PointCloud2, level: bytes | int, message: str, result: ScanResult | None = None
+    ) -> None:
+        """Tell /tile_states (no states, the reason) and /diagnostics that a scan gave no states."""
+        if self.context.ok():
+            self.states_pub.publish(
+                TileStateArray(header=Header(stamp=scan.header.stamp, frame_id="map"), problem=message)
+            )
+        self._diagnose(level, message, result)
 
     # -- messages out -----------------------------------------------------------------------------
     def _states_msg(self, scan: PointCloud2, result: ScanResult) -> TileStateArray:

@@ -599,7 +599,11 @@ class InspectionPipeline:
             tile = result.tiles[index]
             tile.residual = fit.residual
             misplaced = confirmed_by_pixels(
-                fit, agree=tile.physical, disagree=tile.see_through + tile.in_front, settings=self.misplacement_settings
+                fit,
+                agree=tile.physical,
+                disagree=tile.see_through + tile.in_front,
+                blank=tile.blank,
+                settings=self.misplacement_settings,
             )
             if fit.judged:
                 result.misplacement[tile.tile_id] = (misplaced, fit.offset, fit.residual)
