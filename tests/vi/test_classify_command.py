@@ -62,6 +62,16 @@ def test_default_mode_fuses_the_scans_and_finds_every_removed_tile() -> None:
     assert single[0]["tiles"]["2"]["state"] == "occluded"  # the first view does not see it
 
 
+def test_inspecting_in_several_processes_gives_the_same_lines_in_bag_order() -> None:
+    serial, stderr, code = classify("--bag", str(SCANS / "paper_qvga"), "--no-fuse")
+    assert code == 0, stderr
+    parallel, stderr, code = classify("--bag", str(SCANS / "paper_qvga"), "--no-fuse", "--jobs", "2")
+    assert code == 0, stderr
+    assert parallel == serial and len(serial) == 4
+    _, stderr, code = classify("--bag", str(SCANS / "paper_qvga"), "--jobs", "0")
+    assert code == 2 and stderr.count("\n") == 1 and "Traceback" not in stderr
+
+
 def test_a_misplaced_tile_is_reported_with_its_offset() -> None:
     truth = read_truth(SCANS / "paper_misplaced_qvga")
     lines, stderr, code = classify("--bag", str(SCANS / "paper_misplaced_qvga"))

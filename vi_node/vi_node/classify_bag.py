@@ -202,6 +202,13 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+
+def _at_least_one(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return value
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="ros2 run vi_node classify",
@@ -241,7 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--jobs",
-        type=int,
+        type=_at_least_one,
         default=min(2, len(os.sched_getaffinity(0))),
         help="worker processes inspecting scans side by side (default: this machine's cores, at most 2)",
     )
