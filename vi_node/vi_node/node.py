@@ -161,6 +161,10 @@ class ViNode(Node):
         return sorted(set(ids) & set(self.structure.tiles))
 
     def _update_expected(self) -> None:
+        with self.inspecting:  # the scan being inspected keeps the model and fusion it started with
+            self._swap_expected()
+
+    def _swap_expected(self) -> None:
         expected = self._expected_ids()
         if expected is None or self.structure is None:
             return
@@ -179,9 +183,10 @@ class ViNode(Node):
         except StructureError as error:
             self._diagnose(DiagnosticStatus.ERROR, f"ignored /structure: {error}")
             return
-        self.structure = structure
-        self.pipeline = None
-        self._update_expected()
+        with self.inspecting:
+            self.structure = structure
+            self.pipeline = None
+            self._swap_expected()
         self.get_logger().info(f"structure '{structure.name}' with {len(structure)} tiles")
 
     def _on_report(self, msg: PlacementReport) -> None:
@@ -191,8 +196,9 @@ class ViNode(Node):
             self.placed[int(msg.tile_id)] = max(stamp, self.withdrawn.get(int(msg.tile_id), -1) + 1)
         else:
             self.placed.pop(int(msg.tile_id), None)
-        self.fusion.forget([int(msg.tile_id)])  # (re)placed or given up: what was seen of it is history
-        self._update_expected()
+        with self.inspecting:
+            self.fusion.forget([int(msg.tile_id)])  # (re)placed or given up: what was seen of it is history
+            self._swap_expected()
 
     def _on_announcement(self, msg: AuctionAnnouncement) -> None:
         self.withdrawn[int(msg.tile_id)] = max(_stamp_ns(msg.header), self.placed.get(int(msg.tile_id), -1))
