@@ -47,7 +47,7 @@ from vi_node.patches import PlanarPatches
 from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior, pose_error
 from vi_node.raycast import VirtualScan, VirtualScene
 from vi_node.robot_mask import RobotBoxes, inside_robots, tall_things
-from vi_node.scan_result import ScanResult, TileResult, keep_what_fits_agree_on
+from vi_node.scan_result import ScanResult, TileResult
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -125,17 +125,6 @@ class _Away:
         return keep
 
 
-@dataclass(frozen=True)
-class _Search:
-    """The x/y/yaw search's best hypothesis (camera pose), the rivals that fit about as well, or why
-    there is none."""
-
-    pose: Array
-    failure: str = ""
-    rivals: list[Array] = field(default_factory=list)
-    ambiguity: str = ""  # how the best fit and its first rival compare
-
-
 class InspectionPipeline:
     """The visual inspection of one structure; `inspect` runs one scan."""
 
@@ -187,20 +176,9 @@ class InspectionPipeline:
         level = self._level_with_floor(scan)
         if not self.paper:
             self._mask_tall_things(scan, level)
-        search = self._search_x_y_yaw(scan, level)
-        if search.failure:
-            return scan.failed(search.failure)
-        result = self._classify_from(scan, level=level, pose=search.pose)
-        for rival in search.rivals:
-            if not result.ok:
-                break
-            other = self._classify_from(scan, level=level, pose=rival)
-            result = keep_what_fits_agree_on(result, other, search.ambiguity)
-        return result
-
-    def _classify_from(self, scan: _Scan, level: Array, pose: Array) -> ScanResult:
-        """Align from the x/y/yaw hypothesis `pose` and classify (a second time without the tiles
-        found moved, when there are any)."""
+        pose, failure = self._search_x_y_yaw(scan, level)
+        if failure:
+            return scan.failed(failure)
         candidates = self._candidates(scan, pose)
         if len(candidates) < self.settings.min_alignment_points:
             return scan.failed(f"alignment failed: only {len(candidates)} candidate points")
@@ -268,14 +246,14 @@ class InspectionPipeline:
         reach = float(np.linalg.norm(0.5 * (model.low + model.high) - pose[:3, 3]))
         return s.box_margin + s.coarse_shift_range + s.coarse_yaw_range * (reach + 0.3)
 
-    def _search_x_y_yaw(self, scan: _Scan, pose: Array, away: _Away | None = None) -> _Search:
+    def _search_x_y_yaw(self, scan: _Scan, pose: Array, away: _Away | None = None) -> tuple[Array, str]:
         """The x, y, yaw correction of the overhead pose: a coarse search (`coarse_alignment`); in
         default mode its best few hypotheses, each refined by a short ICP, the one that puts most
         points onto S_a's surfaces winning (1 cm cells cannot tell a degree of yaw from a
         centimetre of shift, and views of few faces have more than one local fit)."""
         s, model = self.settings, self.model
         if not s.coarse_search or model.coarse is None:
-            return _Search(pose)
+            return pose, ""
         # the 1 cm voxels of the search need no more than every other pixel (default mode)
         stride = 1 if self.paper else 2
         near = select_candidates(
@@ -294,21 +272,21 @@ class InspectionPipeline:
         scan.timer.lap("candidates")
         enough = s.min_alignment_points // stride**2
         if len(near) < enough:
-            return _Search(pose, failure=f"alignment failed: only {len(near)} points near the expected structure")
+            return pose, f"alignment failed: only {len(near)} points near the expected structure"
         found = model.coarse.hypotheses(near.points, pose[:3, 3], 1 if self.paper else s.alignment_hypotheses)
         found = [h for h in found if h.on_surface >= 0.25 and h.on_surface_points >= enough]
         scan.timer.lap("coarse")
         if not found:
-            return _Search(pose, failure="alignment failed: no x/y/yaw puts the scan on S_a")
+            return pose, "alignment failed: no x/y/yaw puts the scan on S_a"
         if len(found) == 1:
-            return _Search(found[0].correction @ pose)
+            return found[0].correction @ pose, ""
         return self._best_fit(scan, [h.correction @ pose for h in found], near.points, pose)
 
-    def _best_fit(self, scan: _Scan, poses: list[Array], points: Array, pose: Array) -> _Search:
+    def _best_fit(self, scan: _Scan, poses: list[Array], points: Array, pose: Array) -> tuple[Array, str]:
         """The pose, of `poses` refined by a short ICP each, that puts most of `points` (map frame
-        under `pose`) within a few millimetres of S_a's surfaces, with its rivals: the fits, 3 cm or
-        2 degrees away, that explain the points nearly as well (a view of a few faces of a
-        repetitive structure); or why none can be trusted: too few points fit at all."""
+        under `pose`) within a few millimetres of S_a's surfaces; or why none can be trusted: another
+        fit, 3 cm or 2 degrees away, explains the points nearly as well (a view of a few faces
+        of a repetitive structure), or too few points fit at all."""
         s, model = self.settings, self.model
         sample = points[:: max(1, math.ceil(len(points) / s.icp_max_points))]
         fits: list[tuple[int, Array, Array]] = []  # (count, start, refined)
@@ -326,22 +304,19 @@ class InspectionPipeline:
             fits.append((int(np.count_nonzero(on_surface)), start, refined))
         scan.timer.lap("hypotheses")
         if not fits:
-            return _Search(poses[0])
+            return poses[0], ""
         fits.sort(key=lambda fit: -fit[0])
         count, start, refined = fits[0]
         if count < s.min_fit_points:
-            return _Search(start, failure=f"alignment failed: only {count} points fit S_a's surfaces")
-        rivals, ambiguity = [], ""
-        for other, rival, elsewhere in fits[1:]:
+            return start, f"alignment failed: only {count} points fit S_a's surfaces"
+        for other, _, elsewhere in fits[1:]:
             shift, turn = pose_error(elsewhere, refined)
             if (shift > 0.03 or turn > math.radians(2.0)) and other >= s.ambiguity * count:
-                rivals.append(rival)
-                ambiguity = ambiguity or (
+                return start, (
                     f"alignment ambiguous: fits {shift * 100:.0f} cm / {math.degrees(turn):.0f} deg apart explain "
                     f"{count} and {other} points"
                 )
-        # the full ICP starts from the hypothesis, not from this short refinement
-        return _Search(start, rivals=rivals, ambiguity=ambiguity)
+        return start, ""  # the full ICP starts from the hypothesis, not from this short refinement
 
     def _candidates(self, scan: _Scan, pose: Array) -> Candidates:
         """C_1: points near S_a's box, above the floor, not of a robot (inside a robot's box, grown by
@@ -649,10 +624,9 @@ class InspectionPipeline:
             reach = self.misplacement_settings.reach + math.hypot(offset[0], offset[1])
             boxes.append((model.patches.tile_low[index] - reach, model.patches.tile_high[index] + reach))
         away = _Away(first.camera_pose, boxes)
-        search = self._search_x_y_yaw(scan, level, away)
-        if search.failure or search.rivals:
+        pose, failure = self._search_x_y_yaw(scan, level, away)
+        if failure:
             return self._unless_all_moved(first, scan)
-        pose = search.pose
         candidates = self._candidates(scan, pose)
         keep = away.outside(candidates.points, pose)
         if keep.sum() < self.settings.min_alignment_points:

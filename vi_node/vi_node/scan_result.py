@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,41 +66,3 @@ class ScanResult:
     def moved_tiles(self) -> list[int]:
         """Tiles this scan flagged misplaced."""
         return [tile_id for tile_id, (flagged, _, _) in self.misplacement.items() if flagged]
-
-
-def keep_what_fits_agree_on(first: ScanResult, other: ScanResult, ambiguity: str) -> ScanResult:
-    """The scan classified under two alignments that fit its points about equally well: the states
-    both give stand; a tile they disagree on is left undetermined, with no evidence or offset from
-    this scan (either alignment might be the wrong one). An `other` alignment that failed its own
-    checks is no rival."""
-    if not (first.ok and other.ok) or first.tile_ids != other.tile_ids:
-        return first
-    theirs = other.by_id()
-    differ = [k for k, tile in enumerate(first.tiles) if tile.state != theirs[tile.tile_id].state]
-    if not differ:
-        return first
-    tiles = list(first.tiles)
-    for k in differ:
-        tiles[k] = TileResult(tile_id=tiles[k].tile_id, state=TileState.OCCLUDED, physical=0, virtual=0, ratio=0.0)
-    evidence, states = first.evidence, first.evidence_states
-    if evidence is not None:
-        evidence = replace(evidence, **{f.name: _zeroed(getattr(evidence, f.name), differ) for f in fields(evidence)})
-    if states is not None:
-        states = states.copy()
-        states[differ] = int(TileState.OCCLUDED)
-    dropped = {tiles[k].tile_id for k in differ}
-    note = f"{ambiguity}: {len(differ)} tiles on which they disagree left undetermined"
-    return replace(
-        first,
-        tiles=tiles,
-        evidence=evidence,
-        evidence_states=states,
-        misplacement={t: m for t, m in first.misplacement.items() if t not in dropped},
-        notes=[*first.notes, note],
-    )
-
-
-def _zeroed(counts: NDArray[np.int64], where: list[int]) -> NDArray[np.int64]:
-    counts = counts.copy()
-    counts[where] = 0
-    return counts
