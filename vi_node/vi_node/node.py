@@ -95,6 +95,10 @@ class ViNode(Node):
         self.placed: dict[int, int] = {}  # tile id -> stamp (ns) of its latest placement report
         self.withdrawn: dict[int, int] = {}  # tile id -> stamp (ns) of the auction that took it out of S_a
         self.reports_seen = False
+        # what the state callbacks learn of S_a, applied by the scan thread between two scans
+        self.news_lock = threading.Lock()
+        self.expected_changed = False
+        self.to_forget: list[int] = []
         self.pipeline: InspectionPipeline | None = None
         self.fusion = TileFusion()
         self.poses = PoseBuffer()
@@ -129,6 +133,7 @@ class ViNode(Node):
         self._follow_other_robots()
         self.create_timer(1.0, self._follow_other_robots, callback_group=state)
         self._update_expected()
+        self._apply_news()
         self.get_logger().info(
             f"inspecting in {self.settings.mode} mode; structure: "
             f"{self.structure.name if self.structure else 'waiting for /structure'}"
@@ -161,15 +166,25 @@ class ViNode(Node):
         return sorted(set(ids) & set(self.structure.tiles))
 
     def _update_expected(self) -> None:
-        with self.inspecting:  # the scan being inspected keeps the model and fusion it started with
-            self._swap_expected()
+        """S_a changed: the next scan is inspected against the new one (the scan being inspected
+        keeps the model and the fusion it started with)."""
+        with self.news_lock:
+            self.expected_changed = True
 
-    def _swap_expected(self) -> None:
-        expected = self._expected_ids()
-        if expected is None or self.structure is None:
-            return
-        if self.pipeline is None or self.pipeline.structure is not self.structure:
-            self.pipeline = InspectionPipeline(self.structure, expected, self.settings)
+    def _apply_news(self) -> None:
+        """Between two scans (scan thread): what the state callbacks learnt of S_a."""
+        with self.news_lock:
+            changed, self.expected_changed = self.expected_changed, False
+            forget, self.to_forget = self.to_forget, []
+            expected, structure = (self._expected_ids(), self.structure) if changed else (None, None)
+        if forget:
+            self.fusion.forget(forget)  # (re)placed or given up: what was seen of them is history
+        if expected is not None and structure is not None:
+            self._swap_expected(structure, expected)
+
+    def _swap_expected(self, structure: StructureModel, expected: list[int]) -> None:
+        if self.pipeline is None or self.pipeline.structure is not structure:
+            self.pipeline = InspectionPipeline(structure, expected, self.settings)
             self.fusion = TileFusion(
                 self.pipeline.evidence_settings, paper_rules=self.settings.mode == "paper"
             )
@@ -183,26 +198,27 @@ class ViNode(Node):
         except StructureError as error:
             self._diagnose(DiagnosticStatus.ERROR, f"ignored /structure: {error}")
             return
-        with self.inspecting:
+        with self.news_lock:
             self.structure = structure
-            self.pipeline = None
-            self._swap_expected()
+            self.expected_changed = True
         self.get_logger().info(f"structure '{structure.name}' with {len(structure)} tiles")
 
     def _on_report(self, msg: PlacementReport) -> None:
-        self.reports_seen = True
-        stamp = _stamp_ns(msg.header)
-        if msg.outcome == PlacementReport.OUTCOME_PLACED:
-            self.placed[int(msg.tile_id)] = max(stamp, self.withdrawn.get(int(msg.tile_id), -1) + 1)
-        else:
-            self.placed.pop(int(msg.tile_id), None)
-        with self.inspecting:
-            self.fusion.forget([int(msg.tile_id)])  # (re)placed or given up: what was seen of it is history
-            self._swap_expected()
+        stamp, tile_id = _stamp_ns(msg.header), int(msg.tile_id)
+        with self.news_lock:
+            self.reports_seen = True
+            if msg.outcome == PlacementReport.OUTCOME_PLACED:
+                self.placed[tile_id] = max(stamp, self.withdrawn.get(tile_id, -1) + 1)
+            else:
+                self.placed.pop(tile_id, None)
+            self.to_forget.append(tile_id)
+            self.expected_changed = True
 
     def _on_announcement(self, msg: AuctionAnnouncement) -> None:
-        self.withdrawn[int(msg.tile_id)] = max(_stamp_ns(msg.header), self.placed.get(int(msg.tile_id), -1))
-        self._update_expected()
+        tile_id = int(msg.tile_id)
+        with self.news_lock:
+            self.withdrawn[tile_id] = max(_stamp_ns(msg.header), self.placed.get(tile_id, -1))
+            self.expected_changed = True
 
     # -- scans ------------------------------------------------------------------------------------
     def _match_sensor_publishers(self) -> None:
@@ -291,6 +307,7 @@ class ViNode(Node):
     def _process_pending(self) -> None:
         with self.inspecting:
             if not self.closing and self.context.ok():
+                self._apply_news()
                 self._process_pending_scan()
 
     def _process_pending_scan(self) -> None:
@@ -396,9 +413,9 @@ class ViNode(Node):
         clear.header.frame_id = "map"
         clear.ns = "tiles"
         markers.markers.append(clear)
-        assert self.structure is not None
+        assert self.pipeline is not None  # the structure this scan was inspected against
         for tile in result.tiles:
-            placed = self.structure.tiles[tile.tile_id]
+            placed = self.pipeline.structure.tiles[tile.tile_id]
             markers.markers.append(self._tile_marker(scan, placed, "tiles", COLOURS[tile.state]))
             if tile.state == State.MISPLACED:  # and where the scan says it really is
                 where = moved_tile(placed, tile.offset)
