@@ -96,6 +96,9 @@ class _Scan:
     notes: list[str] = field(default_factory=list)
     floor: FloorFit | None = None
     masked: Mask | None = None  # (H, W) pixels of other robots and tall things
+    # (H, W) pixels inside a robot's box but on S_a's surfaces: the alignment may use them, but no
+    # tile is judged on them (a robot's body can pass for the faces of a tile that is gone)
+    unjudged: Mask | None = None
     robots: RobotBoxes | None = None  # the other robots the overhead cameras see
 
     def failed(self, reason: str) -> ScanResult:
@@ -327,13 +330,18 @@ class InspectionPipeline:
         )
         if scan.robots is not None:
             robot = inside_robots(candidates.points, scan.robots.robots, self.robot_settings)
-            if robot.any():  # a point on S_a's surfaces is a tile's, however near a robot it lies
-                closest, _, _ = model.scene.closest_points(candidates.points[robot])
-                gap = candidates.points[robot] - closest
-                robot[robot] = np.einsum("ij,ij->i", gap, gap) > s.robot_surface_gap**2
+            if robot.any():  # a point on S_a's surfaces may be a tile's: the alignment keeps it
+                inside = np.flatnonzero(robot)
+                closest, _, _ = model.scene.closest_points(candidates.points[inside])
+                gap = candidates.points[inside] - closest
+                on_surface = np.einsum("ij,ij->i", gap, gap) <= s.robot_surface_gap**2
+                robot[inside[on_surface]] = False
                 if scan.masked is None:
                     scan.masked = np.zeros(scan.cloud.shape[:2], dtype=bool)
                 scan.masked.reshape(-1)[candidates.pixels[robot]] = True
+                if scan.unjudged is None:
+                    scan.unjudged = np.zeros(scan.cloud.shape[:2], dtype=bool)
+                scan.unjudged.reshape(-1)[candidates.pixels[inside[on_surface]]] = True
         scan.timer.lap("candidates")
         return scan.keep(candidates)
 
@@ -357,7 +365,8 @@ class InspectionPipeline:
         if failure:
             return scan.failed(failure)
         virtual = self._virtual_scan(scan, pose)
-        masked = None if scan.masked is None else scan.masked[virtual.rows, virtual.cols]
+        masked = _either(scan.masked, scan.unjudged)
+        masked = None if masked is None else masked[virtual.rows, virtual.cols]
         against_blank = None
         if not self.paper:
             virtual = self.model.scene.look_behind(
@@ -651,6 +660,12 @@ class InspectionPipeline:
         if moved >= 2 and moved >= 0.25 * judged:
             return scan.failed(f"alignment doubtful: {moved} of {judged} tiles seem moved together")
         return result
+
+
+def _either(first: Mask | None, second: Mask | None) -> Mask | None:
+    if first is None or second is None:
+        return first if second is None else second
+    return first | second
 
 
 def _doubtful(evidence: TileEvidence, settings: InspectionSettings, moved: Sequence[int] = ()) -> str:
