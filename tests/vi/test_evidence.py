@@ -202,3 +202,11 @@ def test_a_present_tile_seen_at_grazing_incidence_is_present() -> None:
     evidence = judge(virtual, depth, returns(virtual.tile != 0, NONE))
     assert evidence.blank[0] == 0 and evidence.see_through[0] <= 2
     assert TileState(int(decide(evidence, SETTINGS)[0])) == TileState.PRESENT
+
+
+def test_blank_neighbours_are_edges_without_numpy_warnings() -> None:
+    depth = np.full((6, 6), 1.0, dtype=np.float32)
+    depth[:, 3:] = np.inf  # no return on the right half
+    with np.errstate(all="raise"):
+        inside = smooth(depth)
+    assert inside[2, 1] and not inside[2, 2] and not inside[2, 4]

@@ -114,8 +114,9 @@ def smooth(depth: NDArray[np.float32]) -> Mask:
     window's border): there a pixel of lateral noise or of pose error changes nothing."""
     jump = 0.01 + 0.02 * np.where(np.isfinite(depth), depth, 0.0)
     inside = np.isfinite(depth)
-    dy = np.abs(np.diff(depth, axis=0)) <= np.minimum(jump[1:, :], jump[:-1, :])  # False across inf
-    dx = np.abs(np.diff(depth, axis=1)) <= np.minimum(jump[:, 1:], jump[:, :-1])
+    with np.errstate(invalid="ignore"):  # inf - inf between two blank pixels: nan, compared False
+        dy = np.abs(np.diff(depth, axis=0)) <= np.minimum(jump[1:, :], jump[:-1, :])  # False across inf
+        dx = np.abs(np.diff(depth, axis=1)) <= np.minimum(jump[:, 1:], jump[:, :-1])
     inside[1:, :] &= dy
     inside[:-1, :] &= dy
     inside[:, 1:] &= dx
