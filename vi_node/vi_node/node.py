@@ -28,6 +28,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -250,7 +251,12 @@ class ViNode(Node):
             if current is not None:
                 self.destroy_subscription(current[0])
             qos = QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST, reliability=wanted)
-            subscription = self.create_subscription(kind, topic, callback, qos, callback_group=group)
+            # no QoS event handlers: rclpy's executor fails on the handler of a subscription destroyed
+            # while it builds its wait set ("destruction was requested"), and this one is replaced
+            subscription = self.create_subscription(
+                kind, topic, callback, qos, callback_group=group,
+                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+            )
             self.sensor_subscriptions[topic] = (subscription, wanted)
 
     def _follow_other_robots(self) -> None:
