@@ -48,10 +48,12 @@ def test_choose_weighs_gain_against_driving_and_avoids_failed_viewpoints() -> No
     exploration = Exploration(WEIGHTS, travel_cost=1.0, failure_memory=30.0)
     candidates = [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (0.0, 3.0, 0.0)]
     here = (0.0, 0.0, 0.0)
-    assert exploration.choose(candidates, here, 0.0, [1.0, 3.5, 3.6]) == (1, pytest.approx(1.5))
+    assert exploration.choose(candidates, here, 0.0, [1.5, 3.5, 3.6]) == (1, pytest.approx(1.5))
     exploration.viewpoint_failed(1, now=0.0)
-    assert exploration.choose(candidates, here, 10.0, [1.0, 3.5, 3.6])[0] == 0
-    assert exploration.choose(candidates, here, 31.0, [1.0, 3.5, 3.6])[0] == 1  # forgotten after 30 s
+    assert exploration.choose(candidates, here, 10.0, [1.5, 3.5, 3.6])[0] == 0
+    assert exploration.choose(candidates, here, 31.0, [1.5, 3.5, 3.6])[0] == 1  # forgotten after 30 s
+    # where it stands counts half: a missing call is confirmed from another camera position
+    assert exploration.choose([here, (0.5, 0.0, 0.0)], here, 40.0, [2.0, 1.6]) == (1, pytest.approx(1.1))
 
 
 def test_ring_viewpoints_face_the_structure() -> None:

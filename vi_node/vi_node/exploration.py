@@ -124,13 +124,17 @@ class Exploration:
 
         `gains[i]` is the priority candidate i would resolve (`viewpoint.rank_viewpoints` with the
         weights of `priority`); driving there costs `travel_cost` per metre. Candidates that failed
-        recently are skipped (all of them failing: the first one is returned).
+        recently are skipped (all of them failing: the first one is returned); the place the robot
+        stands at counts half its gain.
         """
         best, best_score = 0, -math.inf
         for index, (pose, gain) in enumerate(zip(candidates, gains, strict=True)):
             if now - self.failed.get(index, -math.inf) < self.failure_memory:
                 continue
-            score = gain - self.travel_cost * math.dist(here[:2], pose[:2])
+            distance = math.dist(here[:2], pose[:2])
+            if distance < 0.05:  # a second look from the same place tells little new, and a
+                gain *= 0.5  # missing call is confirmed from another camera position
+            score = gain - self.travel_cost * distance
             if score > best_score + 1e-9:
                 best, best_score = index, score
         return best, best_score
