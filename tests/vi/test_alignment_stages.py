@@ -207,3 +207,21 @@ def test_icp_does_not_slide_along_what_the_view_leaves_free() -> None:
     result = point_to_plane_icp(points, correspond)
     assert abs(result.correction[1, 3]) < 1e-4  # y: free, stays
     assert np.allclose(result.correction[:3, :3], np.eye(3), atol=1e-3)
+
+
+def test_the_x_y_yaw_search_looks_sideways_of_the_structure_but_not_in_front_of_it() -> None:
+    """A yaw error turns the structure about the camera: sideways by a third of a metre at 1.5 m,
+    never nearer or farther. Clutter half a metre in front of S_a is left out of the search."""
+    from vi_node.candidates import at_structure_range
+
+    low, high = np.array([-0.15, -0.05, 0.0]), np.array([0.15, 0.05, 0.04])
+    camera = np.array([-1.5, 0.0])
+    points = np.array(
+        [
+            [0.0, 0.0, 0.02],  # on the structure
+            [0.0, 0.30, 0.02],  # where a 11 degree yaw error puts it
+            [-0.55, 0.0, 0.1],  # a box in front of it
+            [0.60, 0.0, 0.1],  # a robot behind it
+        ]
+    )
+    assert at_structure_range(points, camera, low, high, margin=0.13).tolist() == [True, True, False, False]

@@ -60,6 +60,26 @@ def test_agree_see_through_in_front_and_no_return_are_counted_per_tile() -> None
     assert evidence.no_return[1] == int(inner[:, 25:28].sum())
 
 
+def test_a_masked_pixel_counts_only_when_it_sees_through_the_tile() -> None:
+    """A robot's pixels: what agrees with a tile or hides it may be the robot's body, but a depth
+    measured behind a tile's face (the robot standing behind a removed tile) says the ray went
+    through the tile's place."""
+    virtual = virtual_scan()
+    depth = virtual.depth.copy()
+    depth[2:18, 2:8] = 1.4  # behind tile 0: a robot seen through its place
+    depth[2:18, 16:28] = 1.2  # on tile 1's face: maybe the robot's
+    masked = np.zeros(depth.shape, dtype=bool)
+    masked[:, :8] = masked[:, 16:] = True
+
+    evidence = pixel_evidence(measured(depth), virtual, 2, SETTINGS, masked=masked)
+
+    inner = interior(virtual.tile, virtual.depth)
+    assert evidence.see_through[0] == int(inner[:, 2:8].sum())
+    assert evidence.agree[0] == int(inner[:, 8:14].sum())
+    assert evidence.judged[0] == int(inner[:, :15].sum())
+    assert evidence.agree[1] == evidence.judged[1] == evidence.see_through[1] == 0
+
+
 def test_depth_edges_are_not_judged_but_same_depth_neighbours_are() -> None:
     virtual = virtual_scan()
     inner = interior(virtual.tile, virtual.depth)

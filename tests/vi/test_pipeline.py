@@ -147,6 +147,28 @@ def test_robots_beside_the_structure_are_left_out_when_their_poses_are_given(see
             assert tile.state != TileState.MISSING, tile
 
 
+@pytest.mark.parametrize("bearing", [150.0, 90.0])
+def test_tiles_beside_a_robot_are_judged_when_its_overhead_pose_errs_towards_them(bearing: float) -> None:
+    """A robot 3 cm from the structure, its overhead pose 5 cm and 10 degrees off towards it: the
+    grown box of the robot covers the tiles beside it, but only its own points are left out. The
+    removed trapezoid there (and the square that rested on it) are found missing, the square on
+    the octagon next to them present."""
+    paper = structure()
+    present = [tile for tile_id, tile in paper.tiles.items() if tile_id not in (7, 8)]
+    robot = ClutterBox((0.34, 0.0, 0.175), (0.33, 0.33, 0.35))
+    view = view_from(np.zeros(3), math.radians(bearing), 1.1, np.random.default_rng(3))
+    cloud = KinectSimulator(seed=4).scan(KinectScene(present, [robot]), view.camera)
+    robots = [OverheadPose(0.29, 0.0, math.radians(10.0))]
+
+    result = InspectionPipeline(paper, None, DEFAULT).inspect(cloud, OverheadPose(*view.overhead), robots)
+
+    assert result.ok, result.reason
+    states = {tile.tile_id: tile.state for tile in result.tiles}
+    assert states[7] == states[8] == TileState.MISSING
+    assert states[10] == TileState.PRESENT
+    assert not [tile for tile, state in states.items() if tile not in (7, 8) and state == TileState.MISSING]
+
+
 def test_lower_resolution_clouds_are_scaled_from_the_intrinsics() -> None:
     paper = structure()
     scene = Scene(paper, tuple(paper.tile_ids), (13,))

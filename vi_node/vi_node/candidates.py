@@ -11,6 +11,7 @@ and the ones inside the box (with a margin) and above the floor are kept, with t
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,3 +73,21 @@ def select_candidates(
     inside = np.all((world[:, :2] >= box_low[:2]) & (world[:, :2] <= box_high[:2]), axis=1)
     pixels = (row[inside] * stride + rows.start) * camera.width + (col[inside] * stride + cols.start)
     return Candidates(world[inside], optical[inside], pixels.astype(np.int64))
+
+
+def at_structure_range(points: Array, camera_xy: Array, low: Array, high: Array, margin: float) -> NDArray[np.bool_]:
+    """Which `points` (N, 3, map) lie as far from the camera (in x, y) as some point of the box
+    [low, high], within `margin` (the overhead position error and the box margin).
+
+    An error of the overhead yaw turns the scene about the camera: it moves the structure sideways
+    by up to a third of a metre at 1.5 m, but not nearer or farther. So the search for x, y and
+    yaw needs a wide box around S_a sideways, but not in depth: a box of clutter half a metre in
+    front of the structure (inside the wide box) pulled the search onto its faces.
+    """
+    x = np.clip(camera_xy[0], low[0], high[0])
+    y = np.clip(camera_xy[1], low[1], high[1])
+    nearest = math.hypot(camera_xy[0] - x, camera_xy[1] - y)
+    corners = [(cx, cy) for cx in (low[0], high[0]) for cy in (low[1], high[1])]
+    farthest = max(math.hypot(camera_xy[0] - cx, camera_xy[1] - cy) for cx, cy in corners)
+    distance = np.hypot(points[:, 0] - camera_xy[0], points[:, 1] - camera_xy[1])
+    return (distance >= nearest - margin) & (distance <= farthest + margin)

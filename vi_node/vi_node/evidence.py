@@ -149,13 +149,14 @@ def pixel_evidence(
     """Judge every pixel of the virtual scan's tiles between "there" and "gone" (needs
     `virtual.behind` for "gone"; without it, only "there" is tested). `against_blank`
     (window-sized, from `blank_evidence`) are the blanks that count against their tile; `masked`
-    marks pixels not to judge."""
+    marks pixels of other things (robots): nothing measured there counts for a tile, but a depth
+    measured behind a tile's face still says the ray went through its place."""
     tile = virtual.tile
     counts = TileEvidence.zeros(tile_count)
     if tile.size == 0:
         return counts
     counts.virtual = np.bincount(tile[tile >= 0], minlength=tile_count).astype(np.int64)
-    judged = judgeable(virtual, settings, masked)
+    judged = judgeable(virtual, settings)
     if not judged.any():
         return counts
     measured = cloud[virtual.rows, virtual.cols, 2]
@@ -169,18 +170,19 @@ def pixel_evidence(
         front = ~blank & ~fits_there & (difference < 0)
     if against_blank is None:
         against_blank = np.zeros(tile.shape, dtype=bool)
+    free = np.ones(tile.shape, dtype=bool) if masked is None else ~masked
     owner = tile[judged]
 
     def count(mask: Mask) -> Counts:
         return np.bincount(owner[mask[judged]], minlength=tile_count).astype(np.int64)
 
-    counts.judged = np.bincount(owner, minlength=tile_count).astype(np.int64)
-    counts.agree = count(fits_there & ~fits_gone)
-    counts.ambiguous = count(fits_there & fits_gone)
+    counts.judged = count(free | behind)
+    counts.agree = count(free & fits_there & ~fits_gone)
+    counts.ambiguous = count(free & fits_there & fits_gone)
     counts.see_through = count(behind)
-    counts.in_front = count(front)
-    counts.blank = count(against_blank)
-    counts.no_return = count(blank & ~against_blank)
+    counts.in_front = count(free & front)
+    counts.blank = count(free & against_blank)
+    counts.no_return = count(free & blank & ~against_blank)
     return counts
 
 

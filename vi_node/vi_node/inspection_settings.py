@@ -147,7 +147,10 @@ class InspectionSettings:
     )
     robot_yaw_error: float = _setting(ROBOTS.yaw_error, "default: ... and of their heading (rad)")
     robot_surface_gap: float = _setting(
-        0.02, "default: points inside a robot's box but this close to S_a's surfaces (m) are kept"
+        0.02, "default: points inside a robot's box but this close to S_a's surfaces (m) are kept ..."
+    )
+    robot_face_reach: float = _setting(
+        0.03, "default: ... and judged, unless a point of the robot (off S_a's surfaces) lies this close (m)"
     )
     tall_margin: float = _setting(
         ROBOTS.tall_margin, "default: points this far above the structure's top belong to something else (m)"
@@ -273,6 +276,7 @@ class InspectionSettings:
             "robot_position_error",
             "robot_yaw_error",
             "robot_surface_gap",
+            "robot_face_reach",
             "tall_margin",
         )
         for name in non_negative:

@@ -34,7 +34,7 @@ from tiling_assembly.geometry import rpy_from_rotation
 from tiling_assembly.structure import Structure
 from vi_node.blank_evidence import blank_evidence
 from vi_node.camera_model import OPTICAL_FROM_LINK, PinholeCamera
-from vi_node.candidates import Candidates, select_candidates
+from vi_node.candidates import Candidates, at_structure_range, select_candidates
 from vi_node.classify import TileState, paper_support
 from vi_node.coarse_alignment import CoarseAligner, CoarseSettings
 from vi_node.evidence import TileEvidence, decide, judgeable, pixel_evidence, smooth, unexpected
@@ -46,7 +46,8 @@ from vi_node.misplacement import PlacementContext, ScanPoints, assess, confirmed
 from vi_node.patches import PlanarPatches
 from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior, pose_error
 from vi_node.raycast import VirtualScan, VirtualScene
-from vi_node.robot_mask import RobotBoxes, inside_robots, tall_things
+from vi_node.rival_fits import agreed, distinct
+from vi_node.robot_mask import RobotBoxes, inside_robots, near_robot_points, tall_things
 from vi_node.scan_result import ScanResult, TileResult
 
 Array = NDArray[np.float64]
@@ -179,14 +180,17 @@ class InspectionPipeline:
         level = self._level_with_floor(scan)
         if not self.paper:
             self._mask_tall_things(scan, level)
-        pose, failure = self._search_x_y_yaw(scan, level)
+        starts, failure = self._search_x_y_yaw(scan, level)
         if failure:
             return scan.failed(failure)
-        candidates = self._candidates(scan, pose)
-        if len(candidates) < self.settings.min_alignment_points:
-            return scan.failed(f"alignment failed: only {len(candidates)} candidate points")
-        result = self._align_and_classify(scan, pose=pose, candidates=candidates)
-        if self.paper or not result.ok or not result.moved_tiles():
+        results = [self._classify_from(scan, start) for start in starts]
+        rivals = distinct(results)
+        if not results[0].ok:  # the best fit's alignment fails its checks: a rival alone is no better
+            return results[0]
+        if len(rivals) > 1:
+            return agreed(rivals)
+        result = rivals[0]
+        if self.paper or not result.moved_tiles():
             return result
         return self._judge_again_without_moved_tiles(scan, level=level, first=result)
 
@@ -249,14 +253,15 @@ class InspectionPipeline:
         reach = float(np.linalg.norm(0.5 * (model.low + model.high) - pose[:3, 3]))
         return s.box_margin + s.coarse_shift_range + s.coarse_yaw_range * (reach + 0.3)
 
-    def _search_x_y_yaw(self, scan: _Scan, pose: Array, away: _Away | None = None) -> tuple[Array, str]:
-        """The x, y, yaw correction of the overhead pose: a coarse search (`coarse_alignment`); in
-        default mode its best few hypotheses, each refined by a short ICP, the one that puts most
-        points onto S_a's surfaces winning (1 cm cells cannot tell a degree of yaw from a
-        centimetre of shift, and views of few faces have more than one local fit)."""
+    def _search_x_y_yaw(self, scan: _Scan, pose: Array, away: _Away | None = None) -> tuple[list[Array], str]:
+        """The x, y, yaw corrections of the overhead pose to start ICP from: a coarse search
+        (`coarse_alignment`); in default mode its best few hypotheses, each refined by a short ICP,
+        the one that puts most points onto S_a's surfaces first, and after it those that put
+        nearly as many there from elsewhere (1 cm cells cannot tell a degree of yaw from a
+        centimetre of shift, and a view of a few faces has more than one fit: `rival_fits`)."""
         s, model = self.settings, self.model
         if not s.coarse_search or model.coarse is None:
-            return pose, ""
+            return [pose], ""
         # the 1 cm voxels of the search need no more than every other pixel (default mode)
         stride = 1 if self.paper else 2
         near = select_candidates(
@@ -270,26 +275,29 @@ class InspectionPipeline:
             stride,
         )
         near = scan.keep(near)
+        near = near.subset(
+            at_structure_range(near.points, pose[:2, 3], model.low, model.high, s.box_margin + s.coarse_shift_range)
+        )
         if away is not None:
             near = near.subset(away.outside(near.points, pose))
         scan.timer.lap("candidates")
         enough = s.min_alignment_points // stride**2
         if len(near) < enough:
-            return pose, f"alignment failed: only {len(near)} points near the expected structure"
+            return [pose], f"alignment failed: only {len(near)} points near the expected structure"
         found = model.coarse.hypotheses(near.points, pose[:3, 3], 1 if self.paper else s.alignment_hypotheses)
         found = [h for h in found if h.on_surface >= 0.25 and h.on_surface_points >= enough]
         scan.timer.lap("coarse")
         if not found:
-            return pose, "alignment failed: no x/y/yaw puts the scan on S_a"
+            return [pose], "alignment failed: no x/y/yaw puts the scan on S_a"
         if len(found) == 1:
-            return found[0].correction @ pose, ""
-        return self._best_fit(scan, [h.correction @ pose for h in found], near.points, pose)
+            return [found[0].correction @ pose], ""
+        return self._best_fits(scan, [h.correction @ pose for h in found], near.points, pose)
 
-    def _best_fit(self, scan: _Scan, poses: list[Array], points: Array, pose: Array) -> tuple[Array, str]:
+    def _best_fits(self, scan: _Scan, poses: list[Array], points: Array, pose: Array) -> tuple[list[Array], str]:
         """The pose, of `poses` refined by a short ICP each, that puts most of `points` (map frame
-        under `pose`) within a few millimetres of S_a's surfaces; or why none can be trusted: another
-        fit, 3 cm or 2 degrees away, explains the points nearly as well (a view of a few faces
-        of a repetitive structure), or too few points fit at all."""
+        under `pose`) within a few millimetres of S_a's surfaces, and its rivals: the poses whose
+        fits, 3 cm or 2 degrees away, explain the points nearly as well (a view of a few faces of
+        a repetitive structure); or why none can be trusted (too few points fit at all)."""
         s, model = self.settings, self.model
         sample = points[:: max(1, math.ceil(len(points) / s.icp_max_points))]
         fits: list[tuple[int, Array, Array]] = []  # (count, start, refined)
@@ -307,19 +315,29 @@ class InspectionPipeline:
             fits.append((int(np.count_nonzero(on_surface)), start, refined))
         scan.timer.lap("hypotheses")
         if not fits:
-            return poses[0], ""
+            return poses[:1], ""
         fits.sort(key=lambda fit: -fit[0])
         count, start, refined = fits[0]
         if count < s.min_fit_points:
-            return start, f"alignment failed: only {count} points fit S_a's surfaces"
-        for other, _, elsewhere in fits[1:]:
-            shift, turn = pose_error(elsewhere, refined)
+            return [start], f"alignment failed: only {count} points fit S_a's surfaces"
+        starts = [start]  # the full ICP starts from the hypotheses, not from these short refinements
+        for other, elsewhere, refined_elsewhere in fits[1:]:
+            shift, turn = pose_error(refined_elsewhere, refined)
             if (shift > 0.03 or turn > math.radians(2.0)) and other >= s.ambiguity * count:
-                return start, (
-                    f"alignment ambiguous: fits {shift * 100:.0f} cm / {math.degrees(turn):.0f} deg apart explain "
-                    f"{count} and {other} points"
-                )
-        return start, ""  # the full ICP starts from the hypothesis, not from this short refinement
+                starts.append(elsewhere)
+        return starts, ""
+
+    def _classify_from(self, scan: _Scan, start: Array) -> ScanResult:
+        """The alignment from one x, y, yaw hypothesis and the classification under it; the
+        pixels it masks as robots are its own (a rival starts from the same masks)."""
+        masks = [None if m is None else m.copy() for m in (scan.masked, scan.unjudged)]
+        candidates = self._candidates(scan, start)
+        if len(candidates) < self.settings.min_alignment_points:
+            result = scan.failed(f"alignment failed: only {len(candidates)} candidate points")
+        else:
+            result = self._align_and_classify(scan, pose=start, candidates=candidates)
+        scan.masked, scan.unjudged = masks
+        return result
 
     def _candidates(self, scan: _Scan, pose: Array) -> Candidates:
         """C_1: points near S_a's box, above the floor, not of a robot (inside a robot's box, grown by
@@ -329,21 +347,32 @@ class InspectionPipeline:
             scan.cloud, scan.camera, pose, model.low, model.high, s.box_margin, s.floor_clearance
         )
         if scan.robots is not None:
-            robot = inside_robots(candidates.points, scan.robots.robots, self.robot_settings)
-            if robot.any():  # a point on S_a's surfaces may be a tile's: the alignment keeps it
-                inside = np.flatnonzero(robot)
-                closest, _, _ = model.scene.closest_points(candidates.points[inside])
-                gap = candidates.points[inside] - closest
-                on_surface = np.einsum("ij,ij->i", gap, gap) <= s.robot_surface_gap**2
-                robot[inside[on_surface]] = False
-                if scan.masked is None:
-                    scan.masked = np.zeros(scan.cloud.shape[:2], dtype=bool)
-                scan.masked.reshape(-1)[candidates.pixels[robot]] = True
-                if scan.unjudged is None:
-                    scan.unjudged = np.zeros(scan.cloud.shape[:2], dtype=bool)
-                scan.unjudged.reshape(-1)[candidates.pixels[inside[on_surface]]] = True
+            self._mask_robot_points(scan, candidates)
         scan.timer.lap("candidates")
         return scan.keep(candidates)
+
+    def _mask_robot_points(self, scan: _Scan, candidates: Candidates) -> None:
+        """Masks the candidates inside a robot's grown box and off S_a's surfaces. Those on S_a's
+        surfaces help the alignment, but no tile is judged on the ones beside the robot's own
+        points (a robot's body can pass for the faces of a tile that is gone)."""
+        s = self.settings
+        robot = inside_robots(candidates.points, scan.robots.robots, self.robot_settings)  # type: ignore[union-attr]
+        if not robot.any():
+            return
+        inside = np.flatnonzero(robot)
+        closest, _, _ = self.model.scene.closest_points(candidates.points[inside])
+        gap = candidates.points[inside] - closest
+        on_surface = np.einsum("ij,ij->i", gap, gap) <= s.robot_surface_gap**2
+        robot[inside[on_surface]] = False
+        beside = inside[on_surface][
+            near_robot_points(candidates.points[inside[on_surface]], candidates.points[robot], s.robot_face_reach)
+        ]
+        if scan.masked is None:
+            scan.masked = np.zeros(scan.cloud.shape[:2], dtype=bool)
+        scan.masked.reshape(-1)[candidates.pixels[robot]] = True
+        if scan.unjudged is None:
+            scan.unjudged = np.zeros(scan.cloud.shape[:2], dtype=bool)
+        scan.unjudged.reshape(-1)[candidates.pixels[beside]] = True
 
     def _align_and_classify(
         self,
@@ -633,9 +662,10 @@ class InspectionPipeline:
             reach = self.misplacement_settings.reach + math.hypot(offset[0], offset[1])
             boxes.append((model.patches.tile_low[index] - reach, model.patches.tile_high[index] + reach))
         away = _Away(first.camera_pose, boxes)
-        pose, failure = self._search_x_y_yaw(scan, level, away)
-        if failure:
+        starts, failure = self._search_x_y_yaw(scan, level, away)
+        if failure or len(starts) > 1:
             return self._unless_all_moved(first, scan)
+        pose = starts[0]
         candidates = self._candidates(scan, pose)
         keep = away.outside(candidates.points, pose)
         if keep.sum() < self.settings.min_alignment_points:

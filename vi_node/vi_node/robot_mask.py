@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from vi_node.camera_model import PinholeCamera
 from vi_node.pose_prior import OverheadPose
@@ -120,6 +121,21 @@ def inside_robots(points: Array, robots: Sequence[OverheadPose], settings: Robot
             & (points[:, 2] <= sz + settings.position_error)
         )
     return inside
+
+
+def near_robot_points(points: Array, robot_points: Array, reach: float) -> Mask:
+    """Which `points` (N, 3) lie within `reach` of one of `robot_points` (M, 3).
+
+    A point inside a robot's grown box that lies on S_a's surfaces may be a tile's or the robot's
+    face passing where a tile's would be. A robot's face goes on beyond the tile's place (it is
+    35 cm tall), so the robot's own points, off S_a's surfaces, lie right beside it; a tile's face
+    a few centimetres from any of them is the tile's (the grown box alone swallowed half of a
+    structure a robot stood beside).
+    """
+    if len(points) == 0 or len(robot_points) == 0:
+        return np.zeros(len(points), dtype=bool)
+    distance, _ = cKDTree(robot_points).query(points, distance_upper_bound=reach)
+    return np.isfinite(distance)
 
 
 class RobotBoxes:

@@ -59,6 +59,7 @@ class ScanResult:
     misplacement: dict[int, tuple[bool, tuple[float, float, float], float]] = field(default_factory=dict)
     scan_count: int = 1  # scans fused into `tiles`
     doubt: str = ""  # why the pixels doubt the alignment (a result kept only to judge it once more)
+    rivals: int = 1  # alignments that explain the scan equally well, whose shared verdicts these are
 
     def by_id(self) -> dict[int, TileResult]:
         return {t.tile_id: t for t in self.tiles}
