@@ -222,7 +222,8 @@ def test_an_overhead_pose_far_from_the_truth_gives_no_states(shift: float, turn:
     overhead = OverheadPose(base[0] + shift, base[1] - 0.5 * shift, base[2] + turn)
     for settings in (PAPER, DEFAULT):
         result = InspectionPipeline(structure(), None, settings).inspect(cloud, overhead)
-        assert not result.ok and "alignment" in result.reason and result.tiles == []
+        assert not result.ok and result.tiles == []
+        assert "alignment" in result.reason or "S_a not in view" in result.reason
 
 
 def test_structure_hidden_behind_another_robot_gives_no_states() -> None:

@@ -361,3 +361,28 @@ def test_other_robots_overhead_poses_are_followed_and_their_points_left_out(prob
     assert any("(2 other robots in the scene)" in m for m in probe.diagnostics), probe.diagnostics
     states = {s.tile_id: STATE_NAMES[s.state] for s in probe.states[-1].states}
     assert states == {int(k): v["state"] for k, v in offline_states[-1]["tiles"].items()}
+
+
+def test_scans_are_inspected_while_the_simulated_clock_stands_still(probe: Probe) -> None:
+    """The simulator stops its clock while the scan the explorer waits for is rendered: vi_node
+    inspects a scan on arrival when its overhead pose is there, and on wall time when the pose
+    comes after it, whatever the simulated clock does (here: no /clock at all)."""
+    messages = bag_messages("paper_qvga")
+    pose, cloud = messages[2][1], messages[3][1]
+    with vi_node(f"structure_file:={PAPER}", "use_sim_time:=true", "sensor_reliability:=reliable") as node:
+        assert probe.spin_until(lambda: probe.node.count_subscribers("/vi/camera/depth/points") > 0, 30)
+        time.sleep(0.5)
+        probe.pose.publish(pose)
+        time.sleep(0.1)
+        probe.cloud.publish(cloud)
+        assert probe.spin_until(lambda: len(probe.states) == 1, 20), probe.diagnostics
+        later = deserialize_message(bytes(_serialize(cloud)), PointCloud2)
+        later.header.stamp.sec += 2
+        later_pose = deserialize_message(bytes(_serialize(pose)), PoseStamped)
+        later_pose.header.stamp.sec += 2
+        probe.cloud.publish(later)
+        time.sleep(0.05)
+        probe.pose.publish(later_pose)
+        assert probe.spin_until(lambda: len(probe.states) == 2, 20), probe.diagnostics
+        assert [m.problem for m in probe.states] == ["", ""]
+        assert node.poll() is None

@@ -130,10 +130,16 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
     verdicts = [v for r in result.records for v in r.verdicts]
     if verdicts:
         failed = sum(1 for v in verdicts if v.problem)
+        unseen = sum(1 for v in verdicts if "S_a not in view" in v.problem)
+        seen = len(verdicts) - unseen
         delay_ms = statistics.median(v.wall_delay for v in verdicts) * 1000
         lines.append(
             f"Scans: {len(verdicts)} judged, {failed} ({100.0 * failed / len(verdicts):.1f}%) gave no states; "
             f"scan -> tile states (wall clock): median {delay_ms:.0f} ms"
+        )
+        lines.append(
+            f"  S_a not in view (hidden by robots or out of the image): {unseen}; of the {seen} scans that saw it, "
+            f"{failed - unseen} ({100.0 * (failed - unseen) / max(1, seen):.1f}%) failed to align"
         )
         kinds = Counter(re.sub(r"[-+]?\d+(\.\d+)?", "N", v.problem) for v in verdicts if v.problem)
         lines.extend(f"  no states: {count} x {kind}" for kind, count in kinds.most_common(4))
@@ -293,6 +299,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "present_called_missing": stats.present_called_missing,
             "auctions": len(record.awards), "award_latencies": record.award_latencies,
             "scans_judged": len(record.verdicts), "scans_without_states": sum(1 for v in record.verdicts if v.problem),
+            "scans_not_in_view": sum(1 for v in record.verdicts if "S_a not in view" in v.problem),
             "scan_verdict_delays": [round(v.wall_delay, 4) for v in record.verdicts],
             "scan_problems": [v.problem for v in record.verdicts if v.problem],
             "scans_unanswered": len(record.unjudged_scans),

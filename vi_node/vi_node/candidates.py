@@ -50,14 +50,16 @@ def select_candidates(
     margin: float,
     floor_clearance: float,
     stride: int = 1,
+    height_margin: float | None = None,
 ) -> Candidates:
     """Points within `margin` of the box [low, high] (map) and higher than `floor_clearance`.
 
     `pose` is the 4x4 pose of the optical frame in the map used to place the points; with
-    `stride` > 1 only every stride-th row and column is looked at (for searches that need few points).
+    `stride` > 1 only every stride-th row and column is looked at (for searches that need few points);
+    `height_margin` above the box's top instead of `margin` (a search in x and y only).
     """
     box_low = np.array([low[0] - margin, low[1] - margin, floor_clearance])
-    box_high = high + margin
+    box_high = high + np.array([margin, margin, margin if height_margin is None else height_margin])
     rows, cols = camera.box_roi(pose, box_low, box_high)
     rows = slice(rows.start, rows.stop, stride)
     cols = slice(cols.start, cols.stop, stride)

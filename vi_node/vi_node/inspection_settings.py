@@ -76,6 +76,9 @@ class InspectionSettings:
         "(reliable when every publisher offers it)",
     )
     pose_tolerance: float = _setting(0.1, "largest time between a scan and the overhead pose used for it (s)")
+    pose_near_enough: float = _setting(
+        0.02, "an overhead pose this near the scan's time is used at once, without waiting for a nearer one (s)"
+    )
     other_robots: str = _setting(
         "", "default: robots whose overhead_pose to follow, comma-separated (empty: every one that appears)"
     )
@@ -244,6 +247,7 @@ class InspectionSettings:
                 raise bad("expected_tiles", str(error)) from None
         positive = (
             "pose_tolerance",
+            "pose_near_enough",
             "robot_pose_tolerance",
             "floor_stride",
             "icp_max_iterations",

@@ -105,10 +105,13 @@ class ViNode(Node):
         self.poses = PoseBuffer()
         self.team = TeamPoses()
         self.robot_subscriptions: dict[str, Any] = {}
+        # the latest scan not yet inspected, handed from the cloud callback to the inspection thread
         self.pending: PointCloud2 | None = None
         self.pending_since = 0.0
-        self.inspecting = threading.Lock()  # held while a scan is inspected and its results published
+        self.wake = threading.Condition()  # guards `pending`, `woken`, `closing`
+        self.woken = False
         self.closing = False
+        self.inspection_thread = threading.Thread(target=self._inspect_scans, name="inspection", daemon=True)
 
         scans = MutuallyExclusiveCallbackGroup()
         state = MutuallyExclusiveCallbackGroup()
@@ -128,13 +131,13 @@ class ViNode(Node):
         self.states_pub = self.create_publisher(TileStateArray, "/tile_states", 10)
         self.markers_pub = self.create_publisher(MarkerArray, "/tile_markers", 10)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.create_timer(0.01, self._process_pending, callback_group=scans)
         if self.settings.sensor_reliability == "auto":
             self.create_timer(0.5, self._match_sensor_publishers, callback_group=state)
         self._follow_other_robots()
         self.create_timer(1.0, self._follow_other_robots, callback_group=state)
         self._update_expected()
         self._apply_news()
+        self.inspection_thread.start()
         self.get_logger().info(
             f"inspecting in {self.settings.mode} mode; structure: "
             f"{self.structure.name if self.structure else 'waiting for /structure'}"
@@ -296,46 +299,76 @@ class ViNode(Node):
             self._diagnose(DiagnosticStatus.WARN, "ignored an overhead pose with a zero quaternion")
             return
         self.poses.add(_stamp_ns(msg.header), pose)
+        self._wake_inspection()
 
     def _on_cloud(self, msg: PointCloud2) -> None:
-        if self.pending is not None:
-            self._unclassified(
-                self.pending, DiagnosticStatus.WARN, "dropped a scan: a newer one arrived before its overhead pose"
-            )
-        self.pending = msg
-        self.pending_since = time.monotonic()
+        with self.wake:
+            dropped, self.pending = self.pending, msg
+            self.pending_since = time.monotonic()
+            self.woken = True
+            self.wake.notify()
+        if dropped is not None:
+            reason = "dropped a scan: a newer one arrived before its overhead pose"
+            self._unclassified(dropped, DiagnosticStatus.WARN, reason)
+
+    def _wake_inspection(self) -> None:
+        with self.wake:
+            self.woken = True
+            self.wake.notify()
 
     def stop_inspecting(self) -> None:
         """Let the scan being inspected finish, then take no more (before the node is destroyed)."""
-        with self.inspecting:
+        with self.wake:
             self.closing = True
+            self.wake.notify()
+        if self.inspection_thread.is_alive():
+            self.inspection_thread.join()
 
-    def _process_pending(self) -> None:
-        with self.inspecting:
-            if not self.closing and self.context.ok():
+    def _inspect_scans(self) -> None:
+        """The inspection thread: a scan is inspected as soon as its overhead pose is here. Its own
+        thread, woken by the callbacks, not an executor's timer: in wall time whatever the
+        simulated clock does, and no polling that takes the interpreter from the inspection."""
+        while True:
+            with self.wake:
+                # a scan waiting for a nearer overhead pose is looked at again every 20 ms
+                self.wake.wait_for(lambda: self.woken or self.closing, timeout=0.02)
+                self.woken = False
+                if self.closing:
+                    return
+            if self.context.ok():
                 self._apply_news()
                 self._process_pending_scan()
 
     def _process_pending_scan(self) -> None:
-        msg = self.pending
+        with self.wake:
+            msg, waited = self.pending, time.monotonic() - self.pending_since
         if msg is None:
             return
         stamp = _stamp_ns(msg.header)
-        tolerance = int(self.settings.pose_tolerance * 1e9)
-        match = self.poses.nearest(stamp, tolerance)
-        waited = time.monotonic() - self.pending_since
+        match = self.poses.nearest(stamp, int(self.settings.pose_tolerance * 1e9))
         latest = self.poses.latest_stamp
-        if match is None or (latest is not None and latest < stamp and waited < self.settings.pose_tolerance):
+        near_enough = match is not None and match[1] <= int(self.settings.pose_near_enough * 1e9)
+        if match is None or (
+            not near_enough and latest is not None and latest < stamp and waited < self.settings.pose_tolerance
+        ):
             # a nearer pose may still be on its way: wait for one newer than the scan, but not long
             if waited < max(1.0, 2 * self.settings.pose_tolerance):
                 return
-            self.pending = None
-            reason = f"dropped a scan: no overhead pose within {self.settings.pose_tolerance:g} s of it"
-            self._unclassified(msg, DiagnosticStatus.WARN, reason)
+            if self._take_pending(msg):
+                reason = f"dropped a scan: no overhead pose within {self.settings.pose_tolerance:g} s of it"
+                self._unclassified(msg, DiagnosticStatus.WARN, reason)
             return
-        self.pending = None
-        robots = self.team.at(stamp, int(self.settings.robot_pose_tolerance * 1e9))
-        self._inspect(msg, match[0], robots)
+        if self._take_pending(msg):
+            robots = self.team.at(stamp, int(self.settings.robot_pose_tolerance * 1e9))
+            self._inspect(msg, match[0], robots)
+
+    def _take_pending(self, msg: PointCloud2) -> bool:
+        """Takes `msg` off `pending`, unless a newer scan replaced it meanwhile."""
+        with self.wake:
+            if self.pending is not msg:
+                return False
+            self.pending = None
+            return True
 
     def _inspect(self, msg: PointCloud2, overhead: OverheadPose, robots: list[OverheadPose]) -> None:
         if msg.header.frame_id != OPTICAL_FRAME:

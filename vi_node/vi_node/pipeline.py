@@ -264,6 +264,7 @@ class InspectionPipeline:
             return [pose], ""
         # the 1 cm voxels of the search need no more than every other pixel (default mode)
         stride = 1 if self.paper else 2
+        # the floor fit has set the height: the search margin is a sideways one
         near = select_candidates(
             scan.cloud,
             scan.camera,
@@ -273,6 +274,7 @@ class InspectionPipeline:
             self._search_margin(pose),
             s.floor_clearance,
             stride,
+            height_margin=s.box_margin,
         )
         near = scan.keep(near)
         near = near.subset(
@@ -283,7 +285,8 @@ class InspectionPipeline:
         scan.timer.lap("candidates")
         enough = s.min_alignment_points // stride**2
         if len(near) < enough:
-            return [pose], f"alignment failed: only {len(near)} points near the expected structure"
+            hidden = f"S_a not in view: only {len(near)} points near where it should be"
+            return [pose], f"{hidden} (hidden, out of the image, or a wrong overhead pose or camera mount)"
         found = model.coarse.hypotheses(near.points, pose[:3, 3], 1 if self.paper else s.alignment_hypotheses)
         found = [h for h in found if h.on_surface >= 0.25 and h.on_surface_points >= enough]
         scan.timer.lap("coarse")
