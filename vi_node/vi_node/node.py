@@ -96,7 +96,7 @@ class ViNode(Node):
         self.placed: dict[int, int] = {}  # tile id -> stamp (ns) of its latest placement report
         self.withdrawn: dict[int, int] = {}  # tile id -> stamp (ns) of the auction that took it out of S_a
         self.reports_seen = False
-        # what the state callbacks learn of S_a, applied by the scan thread between two scans
+        # what the state callbacks learn of S_a, applied by the inspection thread between two scans
         self.news_lock = threading.Lock()
         self.expected_changed = False
         self.to_forget: list[int] = []
@@ -176,7 +176,7 @@ class ViNode(Node):
             self.expected_changed = True
 
     def _apply_news(self) -> None:
-        """Between two scans (scan thread): what the state callbacks learnt of S_a."""
+        """Between two scans (inspection thread): what the state callbacks learnt of S_a."""
         with self.news_lock:
             changed, self.expected_changed = self.expected_changed, False
             forget, self.to_forget = self.to_forget, []
@@ -305,8 +305,7 @@ class ViNode(Node):
         with self.wake:
             dropped, self.pending = self.pending, msg
             self.pending_since = time.monotonic()
-            self.woken = True
-            self.wake.notify()
+        self._wake_inspection()
         if dropped is not None:
             reason = "dropped a scan: a newer one arrived before its overhead pose"
             self._unclassified(dropped, DiagnosticStatus.WARN, reason)

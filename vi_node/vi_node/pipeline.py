@@ -365,10 +365,10 @@ class InspectionPipeline:
         inside = np.flatnonzero(robot)
         closest, _, _ = self.model.scene.closest_points(candidates.points[inside])
         gap = candidates.points[inside] - closest
-        on_surface = np.einsum("ij,ij->i", gap, gap) <= s.robot_surface_gap**2
-        robot[inside[on_surface]] = False
-        beside = inside[on_surface][
-            near_robot_points(candidates.points[inside[on_surface]], candidates.points[robot], s.robot_face_reach)
+        on_surface = inside[np.einsum("ij,ij->i", gap, gap) <= s.robot_surface_gap**2]
+        robot[on_surface] = False
+        beside = on_surface[
+            near_robot_points(candidates.points[on_surface], candidates.points[robot], s.robot_face_reach)
         ]
         if scan.masked is None:
             scan.masked = np.zeros(scan.cloud.shape[:2], dtype=bool)

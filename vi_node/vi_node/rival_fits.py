@@ -12,10 +12,10 @@ say is kept: a tile keeps its state when every rival gives it that state, and is
 otherwise. Its evidence (for fusion over scans) is the least every rival grants it, count by count,
 when they agree (the share of pixels for it then stays on the side of their common verdict), and
 nothing when they disagree. The true pose is among the rivals, so a verdict all of them share is
-the true pose's verdict too. A misplacement all of them see is kept;
-one that a rival explains away is dropped. A rival whose alignment fails its checks (a correction
-beyond the overhead errors, pixels that contradict S_a) is left out; when the best fit fails them,
-the scan gives no states at all (the caller's rule).
+the true pose's verdict too. A misplacement all of them see is kept; one that a rival explains
+away is dropped. A rival whose alignment fails its checks (a correction beyond the overhead
+errors, pixels that contradict S_a) is left out; when the best fit fails them, the scan gives no
+states at all (the caller's rule).
 """
 
 from __future__ import annotations
