@@ -80,3 +80,13 @@ def test_ctrl_c_lets_a_running_callback_publish_before_ros_shuts_down() -> None:
         executor.shutdown()
         listener.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.parametrize("signal_name", ["SIGINT", "SIGTERM"])
+def test_a_signal_that_breaks_the_start_up_on_its_way_out_still_exits_quietly(signal_name: str) -> None:
+    """Ctrl-C while Open3D's C extension initialises came out as "ImportError: initialization
+    failed" with two tracebacks and exit code 1."""
+    script = Path(__file__).parent / "interrupted_startup_node.py"
+    result = subprocess.run([sys.executable, str(script), signal_name], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr and "ImportError" not in result.stderr

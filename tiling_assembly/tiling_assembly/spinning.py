@@ -34,7 +34,11 @@ NodeT = TypeVar("NodeT", bound=Node)
 EXIT_BAD_INPUT = 2  # a parameter, structure file or other start-up input was rejected
 
 
+_signalled = threading.Event()  # Ctrl-C or SIGTERM arrived
+
+
 def _interrupt(signum: int, frame: FrameType | None) -> None:
+    _signalled.set()
     raise KeyboardInterrupt
 
 
@@ -58,7 +62,13 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
     try:
         try:
             node = make_node()
-        except startup_errors as error:
+        except Exception as error:
+            if _signalled.is_set():
+                # the signal broke what it interrupted on its way out: an import of a C extension
+                # (Open3D's) turns the KeyboardInterrupt into "ImportError: initialization failed"
+                return 0
+            if not isinstance(error, startup_errors):
+                raise
             print(f"{error_prefix}: {error}", file=sys.stderr)
             return EXIT_BAD_INPUT
         try:
