@@ -5,7 +5,9 @@ namespace (`/robot1`, …). In: the latched `/structure` and `/plan`, `/placemen
 whole team, `/auction/announcements` and `/auction/awards`. Out: the `place_tile` action goals to
 its robot (real M3 driver or simulated robot), `/placement_reports`, `/auction/bids`,
 `/auction/acceptances`, and a `/robot_status` heartbeat on the wall clock (so that a robot whose
-process hangs or dies is noticed even while simulated time runs fast).
+process hangs or dies is noticed even while simulated time runs fast). It hears the auction node's
+`/auction/status` and starts no new tile while cut off from it (`team_contact`); a repeated
+announcement is answered with the same bid, a repeated award with the same acceptance.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from assembly_node.bidding import compute_bid
 from assembly_node.executor import Outcome, PlanExecutor, StepKind
+from assembly_node.team_contact import TeamContact
 from tiling_assembly.messages import pose_of, structure_from_msg
 from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
@@ -36,6 +39,7 @@ from tiling_assembly_msgs.msg import (
     AuctionAnnouncement,
     AuctionAward,
     AuctionBid,
+    AuctioneerStatus,
     PlacementReport,
     RobotStatus,
     Structure,
@@ -70,6 +74,9 @@ class AssemblyNode(Node):
         self.strict_order = bool(self.get_parameter("strict_order").value)
         self.action_timeout = float(self.get_parameter("action_timeout").value)
         self.own_caches = self._cache_overrides()
+        self.contact = TeamContact(self.robot_name, float(self.get_parameter("auctioneer_timeout").value))
+        self.bids_made: dict[int, AuctionBid] = {}  # auction id -> the bid sent
+        self.acceptances: dict[int, AuctionAcceptance] = {}  # auction id -> the acceptance sent
 
         self.executor_state: PlanExecutor | None = None
         self.pending_plan: AssemblyPlan | None = None
@@ -90,6 +97,7 @@ class AssemblyNode(Node):
         self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
         self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
         self.create_subscription(AuctionAward, "/auction/awards", self.on_award, COORDINATION)
+        self.create_subscription(AuctioneerStatus, "/auction/status", self.on_auctioneer_status, COORDINATION)
         self.place_client = ActionClient(self, PlaceTile, "place_tile")
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -119,6 +127,8 @@ class AssemblyNode(Node):
         declare("strict_order", False, "Wait on the next planned tile instead of placing a later ready one.")
         declare("action_timeout", 900.0, "s (node clock) a place action may take before it counts as failed.")
         declare("heartbeat_period", 0.2, "s of wall-clock time between two /robot_status heartbeats.")
+        declare("auctioneer_timeout", 1.5, "s of wall-clock time without /auction/status after which the robot "
+                "finishes its tile and starts no new one (its tiles may be given to others).")
         declare("cache_types", [""], "Tile types with a cache of this robot's own (parallel to cache_xy).")
         declare("cache_xy", [0.0], "x1, y1, x2, y2, ... of this robot's own caches in map (m).")
 
@@ -186,7 +196,13 @@ class AssemblyNode(Node):
         self.executor_state.note_placed(msg.tile_id)
         self.step()
 
+    def on_auctioneer_status(self, msg: AuctioneerStatus) -> None:
+        self.contact.heard(time.monotonic(), msg.plan_revision, msg.lost_robots)
+
     def on_announcement(self, msg: AuctionAnnouncement) -> None:
+        if msg.auction_id in self.bids_made:  # a copy: our bid may have been lost
+            self.bid_pub.publish(self.bids_made[msg.auction_id])
+            return
         state = self.executor_state
         missing = msg.reason in (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING)
         if state is None:
@@ -210,6 +226,7 @@ class AssemblyNode(Node):
         )
         out.header.stamp = self.get_clock().now().to_msg()
         self.bid_pub.publish(out)
+        self.bids_made[msg.auction_id] = out
         self.get_logger().info(
             f"bid {bid.value:.1f} for tile {msg.tile_id} (auction {msg.auction_id}): w={bid.workload:.1f} s, "
             f"c={bid.supported_count}, d={bid.cache_distance:.2f} m"
@@ -219,21 +236,28 @@ class AssemblyNode(Node):
         state = self.executor_state
         if state is None or msg.winner != self.robot_name:
             return
+        if msg.auction_id in self.acceptances:  # a copy: our acceptance may have been lost
+            self.accept_pub.publish(self.acceptances[msg.auction_id])
+            return
         received = time.time()
         index = state.award(msg.tile_id)
         latency = 0.0
         if msg.detection_wall_stamp.sec or msg.detection_wall_stamp.nanosec:
             latency = received - wall_stamp_to_seconds(msg.detection_wall_stamp)
-        ack = AuctionAcceptance(
-            auction_id=msg.auction_id, tile_id=msg.tile_id, robot_name=self.robot_name, award_latency=latency
-        )
-        ack.header.stamp = self.get_clock().now().to_msg()
-        self.accept_pub.publish(ack)
+        self.accept(msg, latency)
         self.get_logger().info(
             f"won tile {msg.tile_id} (auction {msg.auction_id}); placing it at position {index} of my task"
             + (f"; {latency * 1000:.1f} ms after detection" if latency else "")
         )
         self.step()
+
+    def accept(self, award: AuctionAward, latency: float) -> None:
+        ack = AuctionAcceptance(
+            auction_id=award.auction_id, tile_id=award.tile_id, robot_name=self.robot_name, award_latency=latency
+        )
+        ack.header.stamp = self.get_clock().now().to_msg()
+        self.accept_pub.publish(ack)
+        self.acceptances[award.auction_id] = ack
 
     # --- acting -------------------------------------------------------------------------------
     def now(self) -> float:
@@ -247,6 +271,10 @@ class AssemblyNode(Node):
             self.watch_running_goal(state.in_flight)
             return
         if self.now() < self.retry_after:
+            return
+        held = self.contact.hold_reason(time.monotonic(), state.plan_revision)
+        if held:
+            self.get_logger().warn(f"starting no new tile: {held}", throttle_duration_sec=5.0)
             return
         decision = state.next_step()
         if decision.kind is StepKind.WAIT and decision.waiting_for != self.last_wait_logged:

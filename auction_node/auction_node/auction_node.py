@@ -9,15 +9,17 @@ Beyond the paper: a robot whose heartbeat stops is left out of auctions and its 
 to the others through the planner's `/replan` service (a fresh partition and order of everything
 not yet placed, for the robots still alive), which keeps the team's work balanced and its orders
 consistent with precedence; if the planner does not answer, its tiles are auctioned one by one
-instead. A tile a robot gave up on is auctioned among the others, and a support a robot found
-physically absent when placing on it is missing just as if a scan had said so.
+instead; a lost robot heard again is given a share by another replan. A tile a robot gave up on
+is auctioned among the others, and a support a robot found physically absent when placing on it is
+missing just as if a scan had said so. Over a lossy link, announcements and awards are repeated
+until answered (`delivery`), and `/auction/status` tells robots the plan in force and who is
+counted lost (`assembly_node.team_contact`).
 """
 
 from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass
 
 import rclpy
 from builtin_interfaces.msg import Time
@@ -28,6 +30,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from auction_node.auction import AuctionBook, Award
+from auction_node.delivery import AnnouncementRepeater, AwardDelivery
 from auction_node.liveness import Liveness
 from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
 from tiling_assembly.messages import pose_of, structure_from_msg
@@ -36,10 +39,12 @@ from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly_msgs.msg import (
+    AssemblyPlan,
     AuctionAcceptance,
     AuctionAnnouncement,
     AuctionAward,
     AuctionBid,
+    AuctioneerStatus,
     PlacementReport,
     RobotStatus,
     Structure,
@@ -66,14 +71,6 @@ def stamp_seconds(stamp: Time) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-@dataclass
-class PendingAward:
-    award: Award
-    reason: int
-    sent_wall: float
-    detection_wall: float
-
-
 class AuctionNode(Node):
     def __init__(self) -> None:
         super().__init__("auction_node")
@@ -84,7 +81,11 @@ class AuctionNode(Node):
         )
         self.book = AuctionBook(bid_window=float(self.get_parameter("bid_window").value))
         self.liveness = Liveness(timeout=float(self.get_parameter("liveness_timeout").value))
-        self.accept_timeout = float(self.get_parameter("acceptance_timeout").value)
+        resend_period = float(self.get_parameter("resend_period").value)
+        self.delivery = AwardDelivery(resend_period, float(self.get_parameter("acceptance_timeout").value))
+        self.repeater = AnnouncementRepeater(resend_period)
+        if resend_period <= 0 or self.delivery.give_up_after <= 0:
+            raise ValueError("resend_period and acceptance_timeout must be positive")
         self.reopen_delay = float(self.get_parameter("reopen_delay").value)
         self.lost_robot_policy = str(self.get_parameter("lost_robot_policy").value)
         self.robots_find_missing = bool(self.get_parameter("robots_find_missing").value)
@@ -103,13 +104,15 @@ class AuctionNode(Node):
         self.status: dict[str, RobotStatus] = {}
         self.excluded: dict[int, str] = {}  # auction id -> robot left out (it gave the tile up)
         self.detected_wall: dict[int, float] = {}  # tile -> wall time its mismatch was detected
-        self.awaiting_acceptance: dict[int, PendingAward] = {}  # auction id -> award
+        self.announcements: dict[int, AuctionAnnouncement] = {}  # open auction id -> its announcement
         self.reopen: list[tuple[float, int, int]] = []  # (node time, tile, reason)
-        self.replan_in_flight = False
+        self.plan_revision = 0
 
         self.announce_pub = self.create_publisher(AuctionAnnouncement, "/auction/announcements", COORDINATION)
         self.award_pub = self.create_publisher(AuctionAward, "/auction/awards", COORDINATION)
         self.decision_pub = self.create_publisher(String, "/auction/decisions", DECISIONS)
+        self.status_pub = self.create_publisher(AuctioneerStatus, "/auction/status", COORDINATION)
+        self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
         self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
         self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
         self.create_subscription(TileStateArray, "/tile_states", self.on_tile_states, COORDINATION)
@@ -119,6 +122,7 @@ class AuctionNode(Node):
         self.replan_client = self.create_client(Replan, "/replan")
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(0.02, self.tick, clock=steady)
+        self.create_timer(float(self.get_parameter("status_period").value), self.publish_status, clock=steady)
         self.get_logger().info("auction node ready")
 
     def _declare_parameters(self) -> None:
@@ -130,7 +134,10 @@ class AuctionNode(Node):
                 "m between the camera positions of two scans confirming a missing tile (0: any scans).")
         declare("bid_window", 2.0, "s (node clock) from an announcement to its deadline.")
         declare("liveness_timeout", 1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
-        declare("acceptance_timeout", 2.0, "s of wall-clock time for a winner to accept before re-auctioning.")
+        declare("acceptance_timeout", 10.0, "s of wall-clock time without acceptance from a winner still heard "
+                "before its tile is auctioned again (a lost winner's tile goes back at once).")
+        declare("resend_period", 0.25, "s of wall-clock time between copies of an unanswered announcement or award.")
+        declare("status_period", 0.2, "s of wall-clock time between two /auction/status heartbeats.")
         declare("reopen_delay", 5.0, "s (node clock) before an auction nobody bid in is reopened.")
         declare("lost_robot_policy", "replan", "'replan' (planner's /replan service) or 'auction' per tile.")
         declare("robots_find_missing", True,
@@ -173,6 +180,8 @@ class AuctionNode(Node):
         msg.tile_pose = pose_of(tile)
         msg.deadline = rclpy.time.Time(nanoseconds=int(auction.deadline * 1e9)).to_msg()
         self.announce_pub.publish(msg)
+        self.announcements[auction.auction_id] = msg
+        self.repeater.sent(auction.auction_id, time.monotonic())
         self.decide(
             f"auction {auction.auction_id} opened for tile {tile_id} ({tile.type_name}, {REASONS[reason]}); "
             f"bidders: {', '.join(sorted(auction.invited))}"
@@ -227,7 +236,13 @@ class AuctionNode(Node):
             self.decide(f"tile {tile_id} was placed but the scan says missing (q * q^s = -1)")
             self.announce(tile_id, AuctionAnnouncement.REASON_MISSING)
 
+    def on_plan(self, msg: AssemblyPlan) -> None:
+        self.plan_revision = max(self.plan_revision, msg.revision)
+
     def on_bid(self, msg: AuctionBid) -> None:
+        auction = self.book.open_auctions.get(msg.auction_id)
+        if auction is not None and auction.bids.get(msg.robot_name) == msg.bid:
+            return  # a copy: the robot answered a repeated announcement
         refused = self.book.bid(msg.auction_id, msg.robot_name, msg.bid, self.now())
         if refused:
             self.get_logger().warn(f"bid refused: {refused}")
@@ -235,7 +250,7 @@ class AuctionNode(Node):
         self.close_auctions()
 
     def on_acceptance(self, msg: AuctionAcceptance) -> None:
-        pending = self.awaiting_acceptance.pop(msg.auction_id, None)
+        pending = self.delivery.accepted(msg.auction_id)
         if pending is not None and msg.award_latency > 0:
             self.get_logger().info(
                 f"{msg.robot_name} accepted tile {msg.tile_id} {msg.award_latency * 1000:.1f} ms after detection"
@@ -243,23 +258,24 @@ class AuctionNode(Node):
 
     def on_status(self, msg: RobotStatus) -> None:
         self.status[msg.robot_name] = msg
+        self.delivery.taken_up(msg.robot_name, [msg.current_tile, *msg.remaining_tiles])
         if self.liveness.heard(msg.robot_name, time.monotonic()):
-            self.decide(f"{msg.robot_name} is back: it takes part in auctions again")
+            self.robot_back(msg.robot_name)
+
+    def publish_status(self) -> None:
+        status = AuctioneerStatus(
+            plan_revision=self.plan_revision, alive_robots=self.liveness.alive(),
+            lost_robots=sorted(self.liveness.lost),
+        )
+        status.header.stamp = self.get_clock().now().to_msg()
+        self.status_pub.publish(status)
 
     # --- time-driven --------------------------------------------------------------------------
     def tick(self) -> None:
         for robot in self.liveness.newly_lost(time.monotonic()):
             self.robot_lost(robot)
         self.close_auctions()
-        wall = time.monotonic()
-        for auction_id, pending in list(self.awaiting_acceptance.items()):
-            if wall - pending.sent_wall > self.accept_timeout:
-                del self.awaiting_acceptance[auction_id]
-                self.decide(
-                    f"{pending.award.winner} did not accept tile {pending.award.tile_id} "
-                    f"(auction {auction_id}); auctioning it again", error=True,
-                )
-                self.announce(pending.award.tile_id, pending.reason, exclude=pending.award.winner)
+        self.repeat_unanswered(time.monotonic())
         for support, at, robot, tile_id in self.unconfirmed.due(self.now()):
             self.robot_found_missing(support, at, robot, tile_id, waited=True)
         due = [entry for entry in self.reopen if entry[0] <= self.now()]
@@ -267,28 +283,46 @@ class AuctionNode(Node):
         for _, tile_id, reason in due:
             self.announce(tile_id, reason)
 
+    def repeat_unanswered(self, wall: float) -> None:
+        waiting = {a.auction_id: not a.invited <= set(a.bids) for a in self.book.open_auctions.values()}
+        for auction_id in self.repeater.due_again(wall, waiting):
+            self.announce_pub.publish(self.announcements[auction_id])
+        for pending in self.delivery.due_again(wall):
+            self.award_pub.publish(self.award_message(pending.award, pending.detected_wall))
+        for pending in self.delivery.overdue(wall):
+            self.decide(
+                f"{pending.award.winner} did not accept tile {pending.award.tile_id} "
+                f"(auction {pending.award.auction_id}) in {self.delivery.give_up_after:g} s; auctioning it again",
+                error=True,
+            )
+            self.announce(pending.award.tile_id, pending.reason, exclude=pending.award.winner)
+
     def close_auctions(self) -> None:
         reasons = {a.auction_id: a.reason for a in self.book.open_auctions.values()}
         for award in self.book.close_ready(self.now()):
             self.publish_award(award, reasons[award.auction_id])
 
     def publish_award(self, award: Award, reason: int) -> None:
+        self.announcements.pop(award.auction_id, None)
+        missing = (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING)
+        detected = self.detected_wall.pop(award.tile_id, 0.0) if reason in missing else 0.0
+        self.award_pub.publish(self.award_message(award, detected))
+        self.decide(award.decision, error=not award.winner)
+        if award.winner:
+            self.delivery.sent(award, reason, detected, time.monotonic())
+        else:
+            self.reopen.append((self.now() + self.reopen_delay, award.tile_id, reason))
+
+    def award_message(self, award: Award, detected: float) -> AuctionAward:
         msg = AuctionAward(
             auction_id=award.auction_id, tile_id=award.tile_id, winner=award.winner,
             winning_bid=award.winning_bid if award.winner else 0.0, bidders=list(award.bidders),
             bids=list(award.bids), decision=award.decision,
         )
         msg.header.stamp = self.get_clock().now().to_msg()
-        missing = (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING)
-        detected = self.detected_wall.pop(award.tile_id, 0.0) if reason in missing else 0.0
         if detected:
             msg.detection_wall_stamp = Time(sec=int(detected), nanosec=int((detected % 1) * 1e9))
-        self.award_pub.publish(msg)
-        self.decide(award.decision, error=not award.winner)
-        if award.winner:
-            self.awaiting_acceptance[award.auction_id] = PendingAward(award, reason, time.monotonic(), detected)
-        else:
-            self.reopen.append((self.now() + self.reopen_delay, award.tile_id, reason))
+        return msg
 
     def robot_lost(self, robot: str) -> None:
         self.book.forget_bidder(robot)
@@ -299,18 +333,26 @@ class AuctionNode(Node):
             f"{tiles} go to {', '.join(self.liveness.alive()) or 'nobody'} by {self.lost_robot_policy}",
             error=True,
         )
-        for auction_id, pending in list(self.awaiting_acceptance.items()):
-            if pending.award.winner == robot:
-                del self.awaiting_acceptance[auction_id]
+        unaccepted = self.delivery.winner_lost(robot)
         if not self.liveness.alive():
             return
+        for pending in unaccepted:
+            self.announce(pending.award.tile_id, pending.reason, exclude=robot)
         if self.lost_robot_policy == "replan" and self.replan_client.service_is_ready():
-            self.request_replan(robot, tiles)
+            self.request_replan(f"losing {robot}", tiles)
         else:
             for tile_id in tiles:
                 self.announce(tile_id, AuctionAnnouncement.REASON_ROBOT_LOST)
 
-    def request_replan(self, robot: str, tiles: list[int]) -> None:
+    def robot_back(self, robot: str) -> None:
+        """A lost robot is heard again: its old tiles are others' now; a replan gives it a share."""
+        if self.lost_robot_policy == "replan" and self.replan_client.service_is_ready():
+            self.decide(f"{robot} is back: it takes part in auctions again, and a replan gives it a share")
+            self.request_replan(f"{robot} came back", [])
+        else:
+            self.decide(f"{robot} is back: it takes part in auctions again")
+
+    def request_replan(self, why: str, tiles: list[int]) -> None:
         in_flight = [s.current_tile for r, s in self.status.items() if r in self.liveness.alive() and s.current_tile]
         request = Replan.Request(
             placed_tile_ids=sorted(set(self.detector.placed_tiles()) | set(in_flight)),
@@ -322,12 +364,12 @@ class AuctionNode(Node):
             response = f.result()
             if response is not None and response.success:
                 self.decide(
-                    f"replanned after losing {robot}: plan revision {response.plan.revision} for "
+                    f"replanned after {why}: plan revision {response.plan.revision} for "
                     f"{', '.join(t.robot_name for t in response.plan.tasks)}"
                 )
                 return
-            why = response.message if response is not None else "no answer"
-            self.decide(f"replan after losing {robot} failed ({why}); auctioning its tiles", error=True)
+            reason = response.message if response is not None else "no answer"
+            self.decide(f"replan after {why} failed ({reason}); auctioning the tiles {tiles}", error=True)
             for tile_id in tiles:
                 self.announce(tile_id, AuctionAnnouncement.REASON_ROBOT_LOST)
 

@@ -20,7 +20,16 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import PlaceTile
-from tiling_assembly_msgs.msg import AssemblyPlan, AssemblyTask, PlacementReport, RobotStatus, Structure
+from tiling_assembly_msgs.msg import (
+    AssemblyPlan,
+    AssemblyTask,
+    AuctionAnnouncement,
+    AuctionBid,
+    AuctioneerStatus,
+    PlacementReport,
+    RobotStatus,
+    Structure,
+)
 
 pytestmark = pytest.mark.ros
 
@@ -82,3 +91,104 @@ def test_placements_heard_before_the_structure_count() -> None:
         rclpy.shutdown(context=context)
         output = stop_node_process(process)  # also checks it stopped without a traceback
     assert "waits for supports" not in output, output
+
+
+class RobotUnderTest:
+    """assembly_node as /robot1 with a place_tile server that succeeds at once, and the team's topics."""
+
+    def __init__(self) -> None:
+        command = [ros2_command(), "run", "assembly_node", "assembly_node", "--ros-args", "-r", "__ns:=/robot1",
+                   "--params-file", str(REPO / "config" / "assembly_node.yaml")]
+        self.process = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                        text=True)
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("assembly_test_team", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.goals: list[int] = []
+        self.server = ActionServer(self.node, PlaceTile, "/robot1/place_tile", self.place)
+        coordination = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+        self.structure_pub = self.node.create_publisher(Structure, "/structure", LATCHED)
+        self.plan_pub = self.node.create_publisher(AssemblyPlan, "/plan", LATCHED)
+        self.status_pub = self.node.create_publisher(AuctioneerStatus, "/auction/status", coordination)
+        self.announce_pub = self.node.create_publisher(AuctionAnnouncement, "/auction/announcements", coordination)
+        self.bids: list[AuctionBid] = []
+        self.node.create_subscription(AuctionBid, "/auction/bids", self.bids.append, coordination)
+
+    def place(self, handle):  # type: ignore[no-untyped-def]
+        self.goals.append(handle.request.tile_id)
+        handle.succeed()
+        return PlaceTile.Result(error_code=PlaceTile.Result.SUCCEEDED)
+
+    def spin_until(self, predicate, timeout: float) -> bool:  # type: ignore[no-untyped-def]
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+            if predicate():
+                return True
+        return False
+
+    def plan(self, revision: int, tiles: list[int], structure_name: str) -> None:
+        plan = AssemblyPlan(revision=revision, structure_name=structure_name)
+        plan.tasks = [AssemblyTask(robot_name="robot1", tile_ids=tiles)]
+        self.plan_pub.publish(plan)
+
+    def auctioneer_says(self, seconds: float, plan_revision: int, lost: list[str]) -> None:
+        """Publish the auction node's heartbeat for `seconds` while spinning."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.status_pub.publish(AuctioneerStatus(plan_revision=plan_revision, lost_robots=lost))
+            self.spin_until(lambda: False, 0.1)
+
+    def close(self) -> str:
+        self.server.destroy()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+        return stop_node_process(self.process)
+
+
+def test_a_robot_counted_lost_starts_no_tile_until_taken_back_with_the_new_plan() -> None:
+    structure = load_structure(REPO / "config" / "structures" / "paper_14.yaml")
+    ground = [t for t in structure.tile_ids if not structure.supports[t]]
+    robot = RobotUnderTest()
+    try:
+        assert robot.spin_until(lambda: robot.status_pub.get_subscription_count() > 0, 30.0), "no assembly_node"
+        robot.structure_pub.publish(structure_to_msg(structure))
+        robot.auctioneer_says(1.0, plan_revision=1, lost=["robot1"])
+        robot.plan(1, ground[:1], structure.name)
+        robot.auctioneer_says(2.0, plan_revision=2, lost=["robot1"])
+        assert robot.goals == [], "a robot the team counts lost started a tile"
+        robot.auctioneer_says(1.0, plan_revision=2, lost=[])
+        assert robot.goals == [], "started a tile of plan revision 1 while revision 2 is in force"
+        robot.plan(2, ground[1:2], structure.name)
+        robot.auctioneer_says(3.0, plan_revision=2, lost=[])
+        assert robot.goals == ground[1:2]
+        robot.auctioneer_says(0.5, plan_revision=2, lost=[])
+        robot.spin_until(lambda: False, 2.5)  # the auction node falls silent
+        robot.plan(3, ground[2:3], structure.name)
+        robot.spin_until(lambda: False, 2.0)
+        assert robot.goals == ground[1:2], "a robot that cannot hear the auction node started a tile"
+    finally:
+        output = robot.close()
+    assert "starting no new tile: the auction node counts this robot lost" in output
+    assert "starting no new tile: cannot hear the auction node" in output
+
+
+def test_a_repeated_announcement_gets_the_same_bid_again() -> None:
+    structure = load_structure(REPO / "config" / "structures" / "paper_14.yaml")
+    robot = RobotUnderTest()
+    try:
+        assert robot.spin_until(lambda: robot.announce_pub.get_subscription_count() > 0, 30.0), "no assembly_node"
+        robot.structure_pub.publish(structure_to_msg(structure))
+        robot.plan(0, structure.tile_ids[:3], structure.name)
+        robot.spin_until(lambda: False, 1.0)
+        announcement = AuctionAnnouncement(auction_id=5, tile_id=structure.tile_ids[-1], bidders=["robot1"])
+        robot.announce_pub.publish(announcement)
+        assert robot.spin_until(lambda: len(robot.bids) == 1, 5.0), "no bid"
+        robot.spin_until(lambda: False, 2.0)  # its task changes meanwhile (it places tiles)
+        robot.announce_pub.publish(announcement)
+        assert robot.spin_until(lambda: len(robot.bids) == 2, 5.0), "no bid for the repeated announcement"
+    finally:
+        robot.close()
+    assert robot.bids[0].bid == robot.bids[1].bid and robot.bids[1].auction_id == 5
