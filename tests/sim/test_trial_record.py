@@ -10,7 +10,9 @@ from tiling_sim.trial_record import (
     TrialRecord,
     WorldEvent,
     detection_stats,
+    duplicate_placements,
     false_missing_calls,
+    lost_placements,
 )
 
 
@@ -74,3 +76,22 @@ def test_false_calls_count_fresh_judgements_and_auctions_for_tiles_in_place() ->
     assert (stats.present_judgements, stats.present_judged_missing) == (2, 1)
     assert stats.present_tiles_called_missing == 1  # 9, in its one stay in place
     assert false_missing_calls(record()) == [{"t": 90.0, "tile": 9}, {"t": 120.0, "tile": 7}]
+
+
+def test_a_tile_carried_to_a_place_already_taken_counts_as_a_duplicate_and_an_absent_tile_as_lost() -> None:
+    r = record()
+    assert duplicate_placements(r) == []
+    r.events.append(WorldEvent(130.0, "already_present", 7, robot="robot2"))
+    r.events.append(WorldEvent(131.0, "placed", 9, robot="robot1"))  # 9 never left: placed on itself
+    assert [(d["tile"], d["kind"]) for d in duplicate_placements(r)] == [(7, "place taken"), (9, "placed twice")]
+    assert lost_placements(r) == [6, 8]  # removed and never back; the trial did not complete
+    r.completed_at = 140.0
+    assert lost_placements(r) == []
+
+
+def test_percentiles_by_nearest_rank() -> None:
+    from tiling_sim.report import percentile
+
+    values = [0.1 * k for k in range(1, 21)]
+    assert percentile(values, 50) == values[9] and percentile(values, 95) == values[18]
+    assert percentile([], 95) is None

@@ -19,6 +19,7 @@ from tiling_assembly_msgs.msg import (
     AuctionAcceptance,
     AuctionAnnouncement,
     AuctionAward,
+    AuctionBid,
     RobotStatus,
     TileState,
     TileStateArray,
@@ -61,6 +62,7 @@ class ExperimentObserver(Node):
         self.start_sent = False
         self.complete = False
         self.last_counts: dict[int, tuple[int, int, int]] = {}
+        self.heard_once: set[tuple[str, int, str]] = set()  # (topic, auction id, robot)
         self.start_pub = self.create_publisher(Empty, "/sim/start", EVENTS)
         self.create_subscription(String, "/sim/events", self.on_event, EVENTS)
         self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
@@ -68,6 +70,7 @@ class ExperimentObserver(Node):
         self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
         self.create_subscription(AuctionAward, "/auction/awards", self.on_award, COORDINATION)
         self.create_subscription(AuctionAcceptance, "/auction/acceptances", self.on_acceptance, COORDINATION)
+        self.create_subscription(AuctionBid, "/auction/bids", self.on_bid, COORDINATION)
         self.create_subscription(String, "/auction/decisions", self.on_decision, DECISIONS)
         self.create_subscription(RobotStatus, "/robot_status", self.on_status, COORDINATION)
 
@@ -135,16 +138,32 @@ class ExperimentObserver(Node):
         self.record.scans.append(Scan(t=seconds(msg.header.stamp), states=states, fresh=fresh))
         self.record.final_states.update(states)
 
+    def first_time(self, topic: str, auction_id: int, robot: str = "") -> bool:
+        """False for a copy (the auction repeats unanswered messages over a lossy link)."""
+        key = (topic, auction_id, robot)
+        if key in self.heard_once:
+            self.record.copies[topic] = self.record.copies.get(topic, 0) + 1
+            return False
+        self.heard_once.add(key)
+        return True
+
     def on_announcement(self, msg: AuctionAnnouncement) -> None:
+        if not self.first_time("announcements", msg.auction_id):
+            return
         self.record.announcements.append(
             Announcement(seconds(msg.header.stamp), msg.auction_id, msg.tile_id, msg.reason))
 
     def on_award(self, msg: AuctionAward) -> None:
+        if not self.first_time("awards", msg.auction_id):
+            return
         self.record.awards.append(
             AwardRecord(seconds(msg.header.stamp), msg.auction_id, msg.tile_id, msg.winner, msg.decision))
 
+    def on_bid(self, msg: AuctionBid) -> None:
+        self.first_time("bids", msg.auction_id, msg.robot_name)
+
     def on_acceptance(self, msg: AuctionAcceptance) -> None:
-        if msg.award_latency > 0:
+        if self.first_time("acceptances", msg.auction_id) and msg.award_latency > 0:
             self.record.award_latencies.append(msg.award_latency)
 
     def on_decision(self, msg: String) -> None:

@@ -9,6 +9,7 @@ re-placements marked).
 from __future__ import annotations
 
 import json
+import math
 import re
 import statistics
 from collections import Counter
@@ -30,7 +31,9 @@ from tiling_sim.trial_record import (
     TrialRecord,
     allocation_rows,
     detection_stats,
+    duplicate_placements,
     false_missing_calls,
+    lost_placements,
     removal_outcomes,
     schedule,
 )
@@ -150,10 +153,27 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
     if latencies:
         lines.append(
             f"Missing tile detected -> award received by the winner (wall clock, over DDS): median "
-            f"{statistics.median(latencies) * 1000:.1f} ms, max {max(latencies) * 1000:.1f} ms "
-            f"over {len(latencies)} awards"
+            f"{percentile(latencies, 50) * 1000:.1f} ms, p95 {percentile(latencies, 95) * 1000:.1f} ms, "
+            f"max {max(latencies) * 1000:.1f} ms over {len(latencies)} awards"
         )
+    copies: Counter[str] = Counter()
+    for record in result.records:
+        copies.update(record.copies)
+    if copies:
+        lines.append("Auction messages sent again (unanswered over the link): "
+                     + ", ".join(f"{n} {topic}" for topic, n in sorted(copies.items())))
+    duplicates = sum(len(duplicate_placements(r)) for r in result.records)
+    lost = sum(len(lost_placements(r)) for r in result.records)
+    lines.append(f"Tiles placed twice (or carried to a place already taken): {duplicates}; tiles lost: {lost}")
     return lines
+
+
+def percentile(values: list[float], q: float) -> float | None:
+    """The q-th percentile (nearest rank), None without values."""
+    if not values:
+        return None
+    ranked = sorted(values)
+    return ranked[max(0, math.ceil(q / 100 * len(ranked)) - 1)]
 
 
 def chosen_trial(result: ExperimentResult) -> TrialRecord | None:
@@ -298,6 +318,10 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "missing_called_present": stats.missing_called_present,
             "present_called_missing": stats.present_called_missing,
             "auctions": len(record.awards), "award_latencies": record.award_latencies,
+            "award_latency_p50": percentile(record.award_latencies, 50),
+            "award_latency_p95": percentile(record.award_latencies, 95),
+            "messages_resent": record.copies,
+            "duplicate_placements": duplicate_placements(record), "lost_placements": lost_placements(record),
             "scans_judged": len(record.verdicts), "scans_without_states": sum(1 for v in record.verdicts if v.problem),
             "scans_not_in_view": sum(1 for v in record.verdicts if "S_a not in view" in v.problem),
             "scan_verdict_delays": [round(v.wall_delay, 4) for v in record.verdicts],

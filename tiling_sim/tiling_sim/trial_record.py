@@ -106,6 +106,7 @@ class TrialRecord:
     failure: str = ""
     unclean_exits: dict[str, int] = field(default_factory=dict)  # node -> exit code when stopped
     final_states: dict[int, str] = field(default_factory=dict)
+    copies: dict[str, int] = field(default_factory=dict)  # topic -> messages heard again (re-sent)
 
     # --- truth -------------------------------------------------------------------------------
     def presence_intervals(self) -> dict[int, list[tuple[float, float]]]:
@@ -307,3 +308,30 @@ def schedule(record: TrialRecord) -> list[Interval]:
 
 def _pretty(type_name: str) -> str:
     return type_name.replace("_", " ").title()
+
+
+def duplicate_placements(record: TrialRecord) -> list[dict[str, object]]:
+    """Placements of a tile that was in place already: a robot placed it on top of itself (the
+    world refuses, so this counts a bug of the world), or carried it there and found the place
+    taken ("already_present": the tile was given to two robots, or called missing falsely)."""
+    present: set[int] = set()
+    found = []
+    for event in sorted(record.events, key=lambda e: e.t):
+        if event.kind == "placed":
+            if event.tile in present:
+                found.append({"t": event.t, "tile": event.tile, "robot": event.robot, "kind": "placed twice"})
+            present.add(event.tile)
+        elif event.kind == "removed":
+            present.discard(event.tile)
+        elif event.kind == "already_present":
+            found.append({"t": event.t, "tile": event.tile, "robot": event.robot, "kind": "place taken"})
+    return found
+
+
+def lost_placements(record: TrialRecord) -> list[int]:
+    """Tiles of the structure not in place when the trial ended (none when it completed)."""
+    if record.complete():
+        return []
+    ended = max((e.t for e in record.events), default=0.0)
+    intervals = record.presence_intervals()
+    return sorted(t for t in record.tile_types if not record.present_at(t, ended, intervals))
