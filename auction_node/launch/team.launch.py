@@ -28,7 +28,9 @@ def generate_launch_description() -> LaunchDescription:
             PathJoinSubstitution([FindPackageShare("planner_node"), "config", "planner_node.yaml"]),
             {
                 "structure_file": LaunchConfiguration("structure_file"),
-                "robot_names": ParameterValue(LaunchConfiguration("robot_names"), value_type=list),
+                # a typed list: launch parses "[robot1, robot2]" as YAML and checks every item is a
+                # string; a bare `list` is not a type launch knows ("Unrecognized data type")
+                "robot_names": ParameterValue(LaunchConfiguration("robot_names"), value_type=list[str]),
             },
         ],
         output="screen",

@@ -1,9 +1,10 @@
-"""Launch files and parameter files of the M3 and scanning robots.
+"""Launch files of every package and the parameter files of the M3 and scanning robots.
 
-There is no `launch` package on this machine, so the launch files are checked statically: they
-compile, use only the launch/launch_ros API, name executables this package installs and parameter
-files it installs. The parameter files are checked against the nodes themselves: every key is a
-parameter the node declares (a misspelt key would otherwise be silently ignored by ROS).
+The launch files are checked statically here, without the `launch` package (not on PyPI): they
+compile, use only the launch/launch_ros API, and name executables, parameter files and launch files
+the workspace installs. tests/test_real_launch.py runs them under the real `ros2 launch` where it is
+installed. The parameter files are checked against the nodes themselves: every key is a parameter
+the node declares (a misspelt key would otherwise be silently ignored by ROS).
 """
 
 from __future__ import annotations
@@ -19,45 +20,99 @@ from processes import REPO
 from ros_probe import shared_probe
 
 PACKAGE = REPO / "hardware_drivers"
-LAUNCH_FILES = sorted((PACKAGE / "launch").glob("*.launch.py"))
+INSTALL = REPO / "install"
+LAUNCH_FILES = sorted(REPO.glob("*/launch/*.launch.py"))
+ROBOT_LAUNCH_FILES = [p for p in LAUNCH_FILES if p.name != "team.launch.py"]  # nodes in a robot's namespace
+# the value types launch_ros' ParameterValue accepts (a bare `list` fails: "Unrecognized data type")
+SCALAR_TYPES = {"int", "float", "bool", "str"}
 
 
 def entry_points() -> set[str]:
     setup = (PACKAGE / "setup.py").read_text()
-    return set(re.findall(r'"(\w+) = hardware_drivers\.[\w.]+:main"', setup))
+    return set(re.findall(r'"(\w+) = hardware_drivers\.[\w.]+:\w+"', setup))
 
 
-def test_both_robots_have_a_launch_file() -> None:
-    assert {p.name for p in LAUNCH_FILES} == {"m3_robot.launch.py", "vi_robot.launch.py"}
+def test_every_package_has_its_launch_files() -> None:
+    assert {f"{p.parent.parent.name}/{p.name}" for p in LAUNCH_FILES} == {
+        "assembly_node/assembly_robot.launch.py", "auction_node/team.launch.py",
+        "hardware_drivers/m3_robot.launch.py", "hardware_drivers/vi_robot.launch.py",
+        "vi_node/inspection.launch.py",
+    }
+
+
+def calls(tree: ast.AST, name: str) -> list[ast.Call]:
+    return [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == name]
+
+
+def keywords(call: ast.Call) -> dict[str, ast.expr]:
+    return {k.arg: k.value for k in call.keywords if k.arg is not None}
+
+
+def shared_packages(tree: ast.AST) -> set[str]:
+    """The packages whose share directory the launch file looks into (FindPackageShare("...")."""
+    return {c.args[0].value for c in calls(tree, "FindPackageShare") if isinstance(c.args[0], ast.Constant)}
+
+
+def installed_share_files(packages: set[str], folder: str) -> set[str]:
+    return {p.name for package in packages for p in (INSTALL / package / "share" / package / folder).glob("*")}
+
+
+def parse(path: Path) -> ast.Module:
+    tree = ast.parse(path.read_text(), str(path))
+    compile(tree, str(path), "exec")
+    return tree
 
 
 @pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
-def test_launch_file_compiles_and_references_what_the_package_installs(path: Path) -> None:
-    tree = ast.parse(path.read_text(), str(path))
-    compile(tree, str(path), "exec")
+def test_launch_file_compiles_and_references_what_the_workspace_installs(path: Path) -> None:
+    tree = parse(path)
     modules = {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
     assert modules <= {"launch", "launch_ros"}
-    functions = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)]
-    assert "generate_launch_description" in functions
-    nodes = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "Node"]
+    assert "generate_launch_description" in [n.name for n in tree.body if isinstance(n, ast.FunctionDef)]
+    package = path.parent.parent.name
+    assert (INSTALL / package / "share" / package / "launch" / path.name).exists()
+    nodes = calls(tree, "Node")
     assert nodes
-    installed = entry_points()
-    ours = 0
     for node in nodes:
-        keywords = {k.arg: k.value for k in node.keywords}
-        assert {"package", "executable", "namespace"} <= set(keywords)
-        package = keywords["package"]
-        if isinstance(package, ast.Constant):
-            assert package.value == "hardware_drivers"
-            assert keywords["executable"].value in installed
-            ours += 1
-    assert ours >= 2
-    constants = [c.value for c in ast.walk(tree) if isinstance(c, ast.Constant)]
-    yaml_files = {c for c in constants if str(c).endswith(".yaml")}
-    assert yaml_files
-    installed_config = re.findall(r'"\.\./config/([\w.]+)"', (PACKAGE / "setup.py").read_text())
-    for name in yaml_files:
-        assert (REPO / "config" / name).is_file() and name in installed_config
+        arguments = keywords(node)
+        assert {"package", "executable", "name"} <= set(arguments)
+        if isinstance(arguments["package"], ast.Constant):  # not a user's driver named by an argument
+            node_package, executable = arguments["package"].value, arguments["executable"].value
+            assert (INSTALL / node_package / "lib" / node_package / executable).is_file(), executable
+    constants = {c.value for c in ast.walk(tree) if isinstance(c, ast.Constant) and isinstance(c.value, str)}
+    packages = shared_packages(tree)
+    assert {c for c in constants if c.endswith(".yaml")} <= installed_share_files(packages, "config")
+    assert {c for c in constants if c.endswith(".launch.py")} <= installed_share_files(packages, "launch")
+
+
+@pytest.mark.parametrize("path", ROBOT_LAUNCH_FILES, ids=lambda p: p.name)
+def test_robot_nodes_run_in_the_robots_namespace(path: Path) -> None:
+    for node in calls(parse(path), "Node"):
+        assert "namespace" in keywords(node)
+
+
+def value_type_launch_accepts(value_type: ast.expr) -> bool:
+    """int, float, bool, str or a list of one of them (list[str] or List[str])."""
+    if isinstance(value_type, ast.Name):
+        return value_type.id in SCALAR_TYPES
+    return (isinstance(value_type, ast.Subscript) and getattr(value_type.value, "id", "") in {"list", "List"}
+            and getattr(value_type.slice, "id", "") in SCALAR_TYPES)
+
+
+@pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
+def test_typed_parameter_values_use_types_launch_accepts(path: Path) -> None:
+    for value in calls(parse(path), "ParameterValue"):
+        value_type = keywords(value).get("value_type")
+        assert value_type is None or value_type_launch_accepts(value_type), ast.unparse(value)
+
+
+def test_hardware_drivers_launch_files_start_its_own_nodes() -> None:
+    installed = entry_points()
+    for path in (PACKAGE / "launch").glob("*.launch.py"):
+        ours = [keywords(n) for n in calls(parse(path), "Node")
+                if isinstance(keywords(n)["package"], ast.Constant)]
+        assert len(ours) >= 2
+        assert all(k["package"].value == "hardware_drivers" and k["executable"].value in installed for k in ours)
 
 
 def test_m3_launch_remaps_the_overhead_pose_and_vi_launch_the_kinect() -> None:

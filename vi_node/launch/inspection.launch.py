@@ -3,6 +3,9 @@
     ros2 launch vi_node inspection.launch.py base_port:=/dev/ttyUSB0 start_kinect:=true \
         structure_file:=/path/to/structure.yaml
 
+The arguments of vi_robot.launch.py (kinect_package, kinect_executable, kinect_points_topic,
+base_baud, overhead_pose_topic) can be given here too; namespace moves the whole robot.
+
 The base, its navigate_to server and (optionally) the Kinect driver come from hardware_drivers'
 vi_robot.launch.py, which remaps the driver's organized cloud onto /vi/camera/depth/points
 (frame camera_depth_optical_frame); the overhead cameras must publish geometry_msgs/PoseStamped
@@ -21,7 +24,11 @@ from launch_ros.substitutions import FindPackageShare
 def generate_launch_description() -> LaunchDescription:
     settings = PathJoinSubstitution([FindPackageShare("vi_node"), "config", "vi_node.yaml"])
     structure = {"structure_file": LaunchConfiguration("structure_file")}
+    namespace = LaunchConfiguration("namespace")
     arguments = [
+        # declared here too, so that the base (which declares it as well) and the inspection nodes
+        # always share one namespace
+        DeclareLaunchArgument("namespace", default_value="vi", description="the scanning robot's namespace"),
         DeclareLaunchArgument("base_port", default_value="/dev/ttyUSB0", description="Create base port"),
         DeclareLaunchArgument("start_kinect", default_value="false", description="start a Kinect driver"),
         DeclareLaunchArgument("structure_file", default_value="", description="structure; empty: /structure"),
@@ -31,16 +38,17 @@ def generate_launch_description() -> LaunchDescription:
             PathJoinSubstitution([FindPackageShare("hardware_drivers"), "launch", "vi_robot.launch.py"])
         ),
         launch_arguments={
+            "namespace": namespace,
             "base_port": LaunchConfiguration("base_port"),
             "start_kinect": LaunchConfiguration("start_kinect"),
         }.items(),
     )
     inspection = Node(
-        package="vi_node", executable="vi_node", name="vi_node", namespace="vi",
+        package="vi_node", executable="vi_node", name="vi_node", namespace=namespace,
         parameters=[settings, structure], output="screen",
     )
     explorer = Node(
-        package="vi_node", executable="vi_explorer", name="vi_explorer", namespace="vi",
+        package="vi_node", executable="vi_explorer", name="vi_explorer", namespace=namespace,
         parameters=[settings, structure], output="screen",
     )
     return LaunchDescription([*arguments, base, inspection, explorer])
