@@ -70,6 +70,7 @@ from __future__ import annotations
 
 import ctypes
 import ipaddress
+import itertools
 import json
 import os
 import shutil
@@ -290,6 +291,7 @@ class VirtualHosts:
         self._keepers: list[subprocess.Popen[str]] = []
         self._out: set[str] = set()  # ports whose link is cut
         self._free_addresses = self.network.hosts()
+        self._port_numbers = itertools.count(1)  # never reused, even after a host that failed half-way
         try:
             self._hub = self._keep(_start_keeper(self._label("hub"), "hub"))
             self._make_air()
@@ -336,7 +338,7 @@ class VirtualHosts:
         except StopIteration:
             raise VirtualHostsError(f"the subnet {self.network} has no address left for {name}") from None
         keeper = self._keep(_start_keeper(self._label(name), name))
-        host = VirtualHost(name, address, f"p{len(self.hosts) + 1}", link, keeper)
+        host = VirtualHost(name, address, f"p{next(self._port_numbers)}", link, keeper)
         self._connect(host)
         self._shape(host)
         self.hosts[name] = host
