@@ -2,12 +2,16 @@
 
 :class:`DynamixelBus` does transactions: send an instruction, wait for the matching status packet
 with a timeout, retry a bounded number of times, never hang ("no status packet" is the most common
-field failure). :class:`ArmDriver` runs the arm: at connect it pings every joint, writes the
-servos' CW/CCW angle limits from the joint limits and enables torque; then, at a fixed rate, it
-sends pending goals (one SYNC_WRITE of goal position and moving speed for all joints) and reads
-every joint's state block (position, speed, load, voltage, temperature, moving) with the error
-byte of its status packet. Joint errors (overload, overheating, input voltage...) are reported
-when they appear and when they clear.
+field failure); a status packet that does not fit the request (a late reply to an earlier one) is
+skipped. :class:`ArmDriver` runs the arm: at connect it pings every joint, writes the servos' CW/CCW
+angle limits from the joint limits and enables torque (a joint whose configuration went unanswered
+is configured again once it answers: left half done, its servo would never move); then, at a fixed
+rate, it sends pending goals (one SYNC_WRITE of goal position and moving speed for all joints, no
+status reply) and reads every joint's goal registers and state block (position, speed, load,
+voltage, temperature, moving) with the error byte of its status packet. A goal a servo does not
+hold was lost on the bus: it is written again, acknowledged, a bounded number of times. Joint
+errors (overload, overheating, input voltage...) are reported when they appear and when they
+clear; a joint counts as not answering after ``joint_silent_timeout`` without a reply.
 
 Joint angles are the arm's (rad, see ``arm_kinematics``); each joint maps to its servo through
 ``servo_angle = direction * joint_angle + offset``.
@@ -74,6 +78,10 @@ class ArmConfig:
     retries: int = 3  # attempts per transaction
     retry_interval: float = 0.5  # s between reconnect attempts
     silent_timeout: float = 1.0  # s without any servo answering before the bus counts as lost
+    # s without a reply before one joint counts as not answering: a single missed read (a busy
+    # host, noise on the bus) is retried next cycle, not a fault that ends a mission
+    joint_silent_timeout: float = 0.5
+    goal_resends: int = 3  # re-sends of a goal a servo did not take, before reporting it
     goal_tolerance: float = 0.02  # rad
 
     def validate(self) -> None:
@@ -86,12 +94,14 @@ class ArmConfig:
             problems.append(f"joint names repeat: {names}")
         if len(set(ids)) != len(ids):
             problems.append(f"servo ids repeat: {ids}")
-        for name in ("rate", "reply_timeout", "retry_interval", "silent_timeout"):
+        for name in ("rate", "reply_timeout", "retry_interval", "silent_timeout", "joint_silent_timeout"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 problems.append(f"{name} must be positive, got {value}")
         if self.retries < 1:
             problems.append(f"retries must be at least 1, got {self.retries}")
+        if self.goal_resends < 0:
+            problems.append(f"goal_resends must not be negative, got {self.goal_resends}")
         if problems:
             raise ValueError("; ".join(problems))
 
@@ -129,13 +139,16 @@ class DynamixelBus:
         self.failed_attempts = 0  # attempts without a valid status packet
         self.silent_transactions = 0  # transactions that failed every attempt
         self.checksum_retries = 0
+        self.stale_replies = 0  # status packets that answered an earlier request
         self._on_retry = on_retry
 
-    def transact(self, servo_id: int, instruction: int, params: bytes = b"") -> dx.Packet:
-        """The servo's status packet for one instruction; ServoSilentError after `retries` attempts."""
+    def transact(self, servo_id: int, instruction: int, params: bytes = b"",
+                 reply_length: int = 0) -> dx.Packet:
+        """The servo's status packet (with `reply_length` parameter bytes) for one instruction;
+        ServoSilentError after `retries` attempts."""
         packet = dx.instruction_packet(servo_id, instruction, params)
         for attempt in range(1, self.retries + 1):
-            reply = self._attempt(servo_id, packet)
+            reply = self._attempt(servo_id, packet, reply_length)
             if reply is not None:
                 return reply
             self.failed_attempts += 1
@@ -144,20 +157,26 @@ class DynamixelBus:
         self.silent_transactions += 1
         raise ServoSilentError(f"servo {servo_id} gave no valid status packet after {self.retries} tries")
 
-    def _attempt(self, servo_id: int, packet: bytes) -> dx.Packet | None:
+    def _attempt(self, servo_id: int, packet: bytes, reply_length: int) -> dx.Packet | None:
         self.port.discard_input()
         self.parser.reset()
         self.port.write(packet)
         deadline = time.monotonic() + self.reply_timeout
-        while (remaining := deadline - time.monotonic()) > 0:
-            for reply in self.parser.feed(self.port.read(timeout=remaining)):
-                if reply.servo_id != servo_id:
-                    continue  # a late reply to an earlier transaction
-                if reply.code & ErrorBit.CHECKSUM:  # the servo received a damaged packet
-                    self.checksum_retries += 1
+        while True:
+            remaining = deadline - time.monotonic()
+            # Read at least once more after the deadline: a reply that arrived while this thread
+            # was not scheduled (a busy host) is an answer, not a timeout.
+            for reply in self.parser.feed(self.port.read(timeout=max(0.0, remaining))):
+                if reply.servo_id == servo_id and reply.code & ErrorBit.CHECKSUM:
+                    self.checksum_retries += 1  # the servo received a damaged packet
                     return None
+                if reply.servo_id != servo_id or len(reply.params) != reply_length:
+                    # a late reply to an earlier request: taking it would mix up the answers
+                    self.stale_replies += 1
+                    continue
                 return reply
-        return None
+            if remaining <= 0:
+                return None
 
     def send(self, packet: bytes) -> None:
         """An instruction without a status reply (broadcast, SYNC_WRITE)."""
@@ -167,14 +186,13 @@ class DynamixelBus:
         return self.transact(servo_id, Instruction.PING).code
 
     def read(self, servo_id: int, address: int, length: int) -> dx.Packet:
-        reply = self.transact(servo_id, Instruction.READ, bytes([address, length]))
-        if len(reply.params) != length:
-            raise ServoSilentError(
-                f"servo {servo_id} answered a READ of {length} bytes with {len(reply.params)}")
-        return reply
+        return self.transact(servo_id, Instruction.READ, bytes([address, length]), reply_length=length)
 
     def write(self, servo_id: int, address: int, data: bytes) -> int:
         return self.transact(servo_id, Instruction.WRITE, bytes([address]) + bytes(data)).code
+
+
+Goal = tuple[int, int]  # raw goal position and moving speed of one servo
 
 
 class ArmDriver(SupervisedDevice):
@@ -188,13 +206,19 @@ class ArmDriver(SupervisedDevice):
         self._lock = threading.Lock()
         self._readings: dict[str, JointReading] = {}
         self._sequence = 0
-        self._pending_goals: dict[str, tuple[int, int]] = {}  # name -> (position, moving speed)
+        self._pending_goals: dict[str, Goal] = {}  # name -> goal not sent yet
         self._targets: dict[str, float] = {}  # last goal per joint (rad), for reporting
         self._pending_torque: tuple[bool, threading.Event, list[str]] | None = None
         self._errors: dict[str, tuple[str, ...]] = {}
         self._silent: set[str] = set()
         self._bus: DynamixelBus | None = None
         self._corrupt_before = self._failed_before = self._silent_before = 0  # earlier sessions
+        # Owned by the session thread:
+        self._sent_goals: dict[str, Goal] = {}  # the goal each servo should hold
+        self._resends: dict[str, int] = {}  # re-sends of a joint's goal that the servo has not taken yet
+        self._unconfigured: set[str] = set()  # joints not configured in this session yet
+        self._configure_failing: dict[str, float] = {}  # name -> time of its first failed configuration
+        self._last_answer: dict[str, float] = {}
         self.health.set_value("port", config.port)
         self.health.set_value("joints", ", ".join(f"{j.name}={j.servo_id}" for j in config.joints))
 
@@ -284,6 +308,14 @@ class ArmDriver(SupervisedDevice):
                 f"no servo answers a ping on {self.path} (ids {[j.servo_id for j in self.config.joints]}): "
                 f"is the arm powered, and the baud rate {self.config.baud} right?"
             )
+        start = time.monotonic()
+        # every servo is configured in this session, whatever an earlier one did; a servo that was
+        # silent at the ping is configured once it answers
+        self._sent_goals.clear()
+        self._resends.clear()
+        self._unconfigured = {j.name for j in self.config.joints}
+        self._configure_failing.clear()
+        self._last_answer = {j.name: start for j in answering}
         for joint in answering:
             self._configure(bus, joint)
         self._connected(
@@ -300,6 +332,7 @@ class ArmDriver(SupervisedDevice):
         next_cycle = time.monotonic()
         while not self._stopping.is_set():
             self._apply_torque(bus)
+            self._configure_owed(bus)
             self._apply_goals(bus)
             if self._read_all(bus):
                 last_answer = time.monotonic()
@@ -314,19 +347,39 @@ class ArmDriver(SupervisedDevice):
                 next_cycle = time.monotonic()
 
     def _configure(self, bus: DynamixelBus, joint: JointConfig) -> None:
+        """Angle limits, the goal to hold, torque on. A step left unanswered leaves the joint owed
+        (configured again once it answers): half configured, its servo would stay limp for good."""
         low, high = sorted(
             dx.radians_to_position(joint.to_servo(limit)) for limit in (joint.lower, joint.upper)
         )
         try:
             bus.write(joint.servo_id, AX12.CW_ANGLE_LIMIT, dx.u16(low) + dx.u16(high))
-            # hold the present position rather than jump to a stale goal when torque comes on
-            reply = bus.read(joint.servo_id, AX12.PRESENT_POSITION, 2)
-            present = reply.params[0] | reply.params[1] << 8
-            present = min(max(present, low), high)
-            bus.write(joint.servo_id, AX12.GOAL_POSITION, dx.u16(present))
+            goal = self._sent_goals.get(joint.name)
+            if goal is None:
+                # hold the present position rather than jump to a stale goal when torque comes on
+                reply = bus.read(joint.servo_id, AX12.PRESENT_POSITION, 2)
+                present = reply.params[0] | reply.params[1] << 8
+                bus.write(joint.servo_id, AX12.GOAL_POSITION, dx.u16(min(max(present, low), high)))
+            else:  # a goal sent before the servo was configured still stands
+                bus.write(joint.servo_id, AX12.GOAL_POSITION, dx.u16(goal[0]) + dx.u16(goal[1]))
             bus.write(joint.servo_id, AX12.TORQUE_ENABLE, b"\x01")
-        except ServoSilentError:
+        except ServoSilentError as error:
             self.health.count("configure_failures")
+            if joint.name not in self._configure_failing:
+                self._configure_failing[joint.name] = time.monotonic()
+                self.health.event(Level.WARN, f"joint {joint.name} (id {joint.servo_id}) not configured "
+                                  f"({error}); trying again")
+            return
+        self._unconfigured.discard(joint.name)
+        if self._configure_failing.pop(joint.name, None) is not None:
+            self.health.event(Level.OK, f"joint {joint.name} (id {joint.servo_id}) configured, torque on")
+
+    def _configure_owed(self, bus: DynamixelBus) -> None:
+        """Configure the joints still owed it that answered their last read (a silent servo would
+        only cost every cycle its retries)."""
+        for name in sorted(self._unconfigured):
+            if name not in self._silent and name in self._last_answer:
+                self._configure(bus, self.joints[name])
 
     def _apply_torque(self, bus: DynamixelBus) -> None:
         with self._lock:
@@ -341,6 +394,7 @@ class ArmDriver(SupervisedDevice):
                     bus.write(joint.servo_id, AX12.TORQUE_LIMIT, max_torque)
                     reply = bus.read(joint.servo_id, AX12.PRESENT_POSITION, 2)
                     bus.write(joint.servo_id, AX12.GOAL_POSITION, reply.params)
+                    self._sent_goals.pop(joint.name, None)  # re-armed where it stands
                 bus.write(joint.servo_id, AX12.TORQUE_ENABLE, b"\x01" if enabled else b"\x00")
                 check = bus.read(joint.servo_id, AX12.TORQUE_ENABLE, 1)
                 if bool(check.params[0]) != enabled:
@@ -363,7 +417,11 @@ class ArmDriver(SupervisedDevice):
             self.joints[name].servo_id: dx.u16(position) + dx.u16(speed)
             for name, (position, speed) in goals.items()
         }
+        # no status packet comes back: the goal registers read each cycle tell whether it arrived
         bus.send(dx.sync_write(AX12.GOAL_POSITION, blocks))
+        self._sent_goals.update(goals)
+        for name in goals:
+            self._resends.pop(name, None)
         self.health.count("goals_sent")
 
     def _read_all(self, bus: DynamixelBus) -> bool:
@@ -371,16 +429,21 @@ class ArmDriver(SupervisedDevice):
         any_answer = False
         now = time.monotonic()
         readings: dict[str, JointReading] = {}
-        silent: set[str] = set()
+        missed: dict[str, Goal] = {}
         errors: dict[str, tuple[str, ...]] = {}
         for joint in self.config.joints:
             try:
-                reply = bus.read(joint.servo_id, dx.STATE_BLOCK_START, dx.STATE_BLOCK_LENGTH)
+                reply = bus.read(joint.servo_id, dx.JOINT_BLOCK_START, dx.JOINT_BLOCK_LENGTH)
             except ServoSilentError:
-                silent.add(joint.name)
                 continue
             any_answer = True
-            state = dx.decode_state_block(reply.params)
+            self._last_answer[joint.name] = now
+            held, state = dx.decode_joint_block(reply.params)
+            sent = self._sent_goals.get(joint.name)
+            if sent is not None and (held.position, held.moving_speed) != sent:
+                missed[joint.name] = sent
+            elif sent is not None:
+                self._resends.pop(joint.name, None)
             joint_errors = tuple(dx.describe_errors(reply.code))
             errors[joint.name] = joint_errors
             readings[joint.name] = JointReading(
@@ -394,6 +457,9 @@ class ArmDriver(SupervisedDevice):
                 errors=joint_errors,
                 stamp=now,
             )
+        # one missed read is no silence: a servo counts as silent after joint_silent_timeout
+        silent = {name for name in self.joints
+                  if now - self._last_answer.get(name, -math.inf) > self.config.joint_silent_timeout}
         self._report_changes(silent, errors)
         with self._lock:
             self._readings.update(readings)
@@ -401,7 +467,33 @@ class ArmDriver(SupervisedDevice):
                 self._readings.pop(name, None)
             if readings:
                 self._sequence += 1
+        self._resend_missed_goals(bus, missed)
         return any_answer
+
+    def _resend_missed_goals(self, bus: DynamixelBus, missed: Mapping[str, Goal]) -> None:
+        """Write again, with a status reply, the goals the servos do not hold: a SYNC_WRITE that a
+        servo did not receive (noise on the bus) would otherwise leave the joint where it is."""
+        with self._lock:
+            superseded = set(self._pending_goals)
+        for name, (position, speed) in missed.items():
+            if name in superseded:
+                continue  # a newer goal goes out next cycle; re-sending the old one would undo it
+            joint = self.joints[name]
+            resends = self._resends.get(name, 0)
+            if resends == self.config.goal_resends:
+                self._resends[name] = resends + 1
+                self.health.event(Level.ERROR, f"joint {name} (id {joint.servo_id}) does not take its goal "
+                                  f"(position {position}) after {resends} re-sends")
+            if resends >= self.config.goal_resends:
+                continue
+            self._resends[name] = resends + 1
+            self.health.count("goals_resent")
+            self.health.event(Level.WARN, f"joint {name} (id {joint.servo_id}) missed its goal "
+                              f"(position {position}); sending it again")
+            try:
+                bus.write(joint.servo_id, AX12.GOAL_POSITION, dx.u16(position) + dx.u16(speed))
+            except ServoSilentError:
+                pass  # the next read shows whether it arrived; if not, it is sent again
 
     def _report_changes(self, silent: set[str], errors: dict[str, tuple[str, ...]]) -> None:
         with self._lock:
@@ -410,9 +502,9 @@ class ArmDriver(SupervisedDevice):
             self._errors = {**{n: e for n, e in old_errors.items() if n in silent}, **errors}
         for name in sorted(silent - old_silent):
             self.health.count("joint_silences")
-            tries = f"{self.config.retries} tries of {self.config.reply_timeout * 1000:.0f} ms"
+            tries = f"{self.config.retries} tries of {self.config.reply_timeout * 1000:.0f} ms per read"
             self.health.event(Level.ERROR, f"joint {name} (id {self.joints[name].servo_id}) stopped "
-                              f"answering ({tries})")
+                              f"answering (no reply for {self.config.joint_silent_timeout:g} s, {tries})")
         for name in sorted(old_silent - silent):
             self.health.event(Level.OK, f"joint {name} (id {self.joints[name].servo_id}) answers again")
         for name, joint_errors in errors.items():
@@ -429,11 +521,17 @@ class ArmDriver(SupervisedDevice):
         self.health.set_counter("silent_transactions", bus.silent_transactions + self._silent_before)
         self.health.set_counter("corrupt_packets", bus.parser.corrupt_packets + self._corrupt_before)
         self.health.set_counter("checksum_errors_at_servo", bus.checksum_retries)
+        self.health.set_counter("stale_replies", bus.stale_replies)
+        now = time.monotonic()
         with self._lock:
             silent = sorted(self._silent)
             errors = {n: e for n, e in self._errors.items() if e}
             readings = dict(self._readings)
+        # a joint whose configuration keeps failing cannot move: a fault, once it lasts
+        limp = sorted(n for n, since in self._configure_failing.items()
+                      if n not in silent and now - since > self.config.joint_silent_timeout)
         problems = [f"{n}: not answering" for n in silent]
+        problems += [f"{n}: not configured (torque off)" for n in limp]
         problems += [f"{n}: {', '.join(e)}" for n, e in sorted(errors.items())]
         for name, reading in readings.items():
             self.health.set_value(f"{name}", f"{reading.position:+.3f} rad, {reading.temperature:.0f} C, "

@@ -145,6 +145,10 @@ CONTROL_TABLE_SIZE = 50
 # One READ covers everything the driver reports per joint: present position .. moving.
 STATE_BLOCK_START = AX12.PRESENT_POSITION
 STATE_BLOCK_LENGTH = AX12.MOVING - AX12.PRESENT_POSITION + 1
+# The driver's READ per joint and cycle: the goal registers the servo holds (goal position, moving
+# speed), the torque limit and the state block; a goal write the servo missed shows up at once.
+JOINT_BLOCK_START = AX12.GOAL_POSITION
+JOINT_BLOCK_LENGTH = AX12.MOVING - AX12.GOAL_POSITION + 1
 
 POSITION_RANGE_RAD = math.radians(300.0)  # 0..1023 spans 300 degrees
 POSITION_CENTER = 512
@@ -327,6 +331,27 @@ class ServoState:
     voltage: float  # V
     temperature: float  # degC
     moving: bool
+
+
+@dataclass(frozen=True)
+class HeldGoal:
+    """The goal registers of one servo, raw: what it is heading for and how fast."""
+
+    position: int
+    moving_speed: int
+
+
+def decode_joint_block(params: bytes) -> tuple[HeldGoal, ServoState]:
+    """Decode a READ of JOINT_BLOCK_LENGTH bytes from JOINT_BLOCK_START."""
+    if len(params) != JOINT_BLOCK_LENGTH:
+        raise PacketError(f"joint block of {len(params)} bytes, expected {JOINT_BLOCK_LENGTH}")
+
+    def word(address: int) -> int:
+        i = address - JOINT_BLOCK_START
+        return params[i] | params[i + 1] << 8
+
+    goal = HeldGoal(word(AX12.GOAL_POSITION), word(AX12.MOVING_SPEED))
+    return goal, decode_state_block(params[STATE_BLOCK_START - JOINT_BLOCK_START :])
 
 
 def decode_state_block(params: bytes) -> ServoState:

@@ -103,7 +103,7 @@ def test_a_joint_error_is_reported_and_torque_can_be_re_enabled(rig) -> None:
 def test_a_silent_joint_is_retried_reported_and_recovered(rig) -> None:
     emulator, driver, events = rig
     emulator.send("mute 4 on")
-    events.wait_for("joint wrist_pitch (id 4) stopped answering (3 tries of 30 ms)")
+    events.wait_for("joint wrist_pitch (id 4) stopped answering (no reply for 0.5 s, 3 tries of 30 ms per read)")
     assert "wrist_pitch" not in driver.readings()[1]
     assert driver.connected  # the other joints go on
     assert driver.health.counter("silent_transactions") >= 1

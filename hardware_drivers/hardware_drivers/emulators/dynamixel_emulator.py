@@ -1,7 +1,7 @@
 """Dynamixel AX-12 bus emulator on a pseudo-terminal (Protocol 1.0), for tests and trying the nodes.
 
     ros2 run hardware_drivers dynamixel_emulator --port /tmp/m3/arm [--ids 1,2,3,4,5,6]
-        [--stall 6:400]
+        [--stall 6:400] [--drop-goals 0.2] [--packet-loss 0.05] [--seed 1]
 
 One pty is one bus with several servos. Each servo keeps an AX-12 control table (factory
 defaults) and answers PING, READ, WRITE, REG_WRITE/ACTION, RESET and SYNC_WRITE with status
@@ -14,11 +14,18 @@ present speed, load, voltage, temperature and the Moving flag.
 ``--stall ID:POSITION`` models an object between the gripper's fingers: the servo stops at
 POSITION when it closes past it and reports a load.
 
+A real bus loses a packet now and then (noise, a servo busy when it arrives): ``--drop-goals P``
+makes each servo miss a goal write (its part of a SYNC_WRITE, or a WRITE to the goal position) with
+probability P, ``--packet-loss P`` any instruction addressed to it; a missed instruction is neither
+carried out nor answered. The draws come from ``--seed``.
+
 Control lines on stdin: ``error ID overload|overheat|voltage|none`` (a standing fault; overload and
 overheating switch torque off as the Alarm Shutdown register says), ``mute ID on|off`` (the servo
 stops answering), ``stall ID POSITION|none``, ``corrupt N`` (next N status packets with a bad
-checksum), ``garbage N``, ``silence S``, ``unplug S``, ``plug``, ``quit``.
-Events on stdout: ``ready PATH``, ``goal ID POSITION SPEED``, ``torque ID 0|1``.
+checksum), ``drop-goals P``, ``packet-loss P``, ``garbage N``, ``silence S``, ``unplug S``, ``plug``,
+``quit``.
+Events on stdout: ``ready PATH``, ``goal ID POSITION SPEED``, ``torque ID 0|1``, ``missed ID WHAT``
+(a dropped instruction: ``goal`` or the instruction's name).
 """
 
 from __future__ import annotations
@@ -128,14 +135,29 @@ class Servo:
 
 
 class DynamixelEmulator(EmulatorApp):
-    def __init__(self, link: str, baud: int, ids: list[int], stalls: dict[int, int], seed: int) -> None:
+    def __init__(self, link: str, baud: int, ids: list[int], stalls: dict[int, int], seed: int,
+                 drop_goals: float = 0.0, packet_loss: float = 0.0) -> None:
         super().__init__(link, baud, seed)
         self.servos = {i: Servo(i) for i in ids}
         for servo_id, position in stalls.items():
             self.servos[servo_id].stall = position
         self.parser = dx.PacketParser()
         self.corrupt_next = 0
+        self.drop_goals = drop_goals  # probability that a servo misses a goal write
+        self.packet_loss = packet_loss  # probability that a servo misses any instruction
         self._next_motion = 0.0
+
+    def misses(self, servo: Servo, instruction: int, address: int | None, size: int) -> bool:
+        """Whether `servo` misses this instruction (as the drop settings say); reported when it does."""
+        touches_goal = address is not None and address <= AX12.GOAL_POSITION + 1 \
+            and address + size > AX12.GOAL_POSITION
+        if touches_goal and self.drop_goals > 0 and self.rng.random() < self.drop_goals:
+            self.emit(f"missed {servo.servo_id} goal")
+            return True
+        if self.packet_loss > 0 and self.rng.random() < self.packet_loss:
+            self.emit(f"missed {servo.servo_id} {_instruction_name(instruction)}")
+            return True
+        return False
 
     def on_plugged(self) -> None:
         self.parser = dx.PacketParser()
@@ -164,7 +186,8 @@ class DynamixelEmulator(EmulatorApp):
                 body = packet.params[2:]
                 for k in range(0, len(body) - size, size + 1):
                     servo = self.servos.get(body[k])
-                    if servo is not None and not servo.muted:
+                    if servo is not None and not servo.muted \
+                            and not self.misses(servo, packet.code, address, size):
                         self._write(servo, address, bytes(body[k + 1 : k + 1 + size]))
             elif packet.code == Instruction.ACTION:
                 for servo in self.servos.values():
@@ -173,8 +196,11 @@ class DynamixelEmulator(EmulatorApp):
         servo = self.servos.get(packet.servo_id)
         if servo is None or servo.muted:
             return
-        level = servo.table[AX12.STATUS_RETURN_LEVEL]
         params = packet.params
+        writes = packet.code in (Instruction.WRITE, Instruction.REG_WRITE) and len(params) > 0
+        if self.misses(servo, packet.code, params[0] if writes else None, len(params) - 1):
+            return
+        level = servo.table[AX12.STATUS_RETURN_LEVEL]
         if packet.code == Instruction.PING:
             self.reply(servo, 0)
         elif packet.code == Instruction.READ:
@@ -242,6 +268,12 @@ class DynamixelEmulator(EmulatorApp):
         elif verb == "corrupt":
             self.corrupt_next = int(words[1]) if len(words) > 1 else 1
             self.emit(f"corrupt {self.corrupt_next}")
+        elif verb == "drop-goals":
+            self.drop_goals = _probability(words[1])
+            self.emit(f"drop-goals {self.drop_goals:g}")
+        elif verb == "packet-loss":
+            self.packet_loss = _probability(words[1])
+            self.emit(f"packet-loss {self.packet_loss:g}")
         else:
             return False
         return True
@@ -251,6 +283,20 @@ class DynamixelEmulator(EmulatorApp):
         if servo is None:
             raise ValueError(f"no servo {text} on this bus")
         return servo
+
+
+def _instruction_name(code: int) -> str:
+    try:
+        return Instruction(code).name.lower()
+    except ValueError:
+        return f"instruction_{code}"
+
+
+def _probability(text: str) -> float:
+    value = float(text)
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"a probability must be in [0, 1], got {text}")
+    return value
 
 
 def _stall(text: str) -> tuple[int, int]:
@@ -264,10 +310,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--ids", default="1,2,3,4,5,6", help="servo ids on the bus (default 1..6)")
     parser.add_argument("--stall", action="append", type=_stall, default=[], metavar="ID:POSITION",
                         help="an object stops servo ID at POSITION (a tile in the gripper)")
+    parser.add_argument("--drop-goals", type=_probability, default=0.0, metavar="P",
+                        help="probability that a servo misses a goal write (default 0)")
+    parser.add_argument("--packet-loss", type=_probability, default=0.0, metavar="P",
+                        help="probability that a servo misses any instruction (default 0)")
     args = parser.parse_args(argv)
     ids = [int(v) for v in args.ids.split(",") if v.strip()]
     return run_emulator(
-        lambda a: DynamixelEmulator(a.port, a.baud, ids, dict(a.stall), a.seed), args
+        lambda a: DynamixelEmulator(a.port, a.baud, ids, dict(a.stall), a.seed, a.drop_goals, a.packet_loss),
+        args,
     )
 
 
