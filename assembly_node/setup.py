@@ -23,7 +23,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "assembly_node = assembly_node.assembly_node:main",
+            "assembly_node = assembly_node.executables:assembly_node",
         ],
     },
 )

@@ -23,7 +23,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "auction_node = auction_node.auction_node:main",
+            "auction_node = auction_node.executables:auction_node",
         ],
     },
 )

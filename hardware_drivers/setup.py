@@ -25,11 +25,11 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "create_base = hardware_drivers.create_base_node:main",
-            "crustcrawler_arm = hardware_drivers.crustcrawler_arm_node:main",
-            "hokuyo_urg = hardware_drivers.hokuyo_urg_node:main",
-            "m3_robot = hardware_drivers.m3_robot_node:main",
-            "base_navigator = hardware_drivers.base_navigator_node:main",
+            "create_base = hardware_drivers.executables:create_base",
+            "crustcrawler_arm = hardware_drivers.executables:crustcrawler_arm",
+            "hokuyo_urg = hardware_drivers.executables:hokuyo_urg",
+            "m3_robot = hardware_drivers.executables:m3_robot",
+            "base_navigator = hardware_drivers.executables:base_navigator",
             "create_emulator = hardware_drivers.emulators.create_emulator:main",
             "dynamixel_emulator = hardware_drivers.emulators.dynamixel_emulator:main",
             "urg_emulator = hardware_drivers.emulators.urg_emulator:main",

@@ -21,7 +21,7 @@ setup(
     entry_points={
         "console_scripts": [
             "plan = planner_node.plan_command:main",
-            "planner_node = planner_node.planner_node:main",
+            "planner_node = planner_node.executables:planner_node",
             "benchmark = planner_node.benchmark:main",
         ],
     },

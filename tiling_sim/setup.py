@@ -18,8 +18,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "sim_world = tiling_sim.world_node:main",
-            "experiment = tiling_sim.experiment:main",
+            "sim_world = tiling_sim.executables:sim_world",
+            "experiment = tiling_sim.executables:experiment",
             "replay_bag = tiling_sim.replay_bag:main",
             "vi_accuracy = tiling_sim.vi_accuracy:main",
             "vi_benchmark = tiling_sim.vi_benchmark:main",

@@ -23,9 +23,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "vi_node = vi_node.node:main",
+            "vi_node = vi_node.executables:vi_node",
             "classify = vi_node.classify_bag:main",
-            "vi_explorer = vi_node.explorer_node:main",
+            "vi_explorer = vi_node.executables:vi_explorer",
         ],
     },
 )

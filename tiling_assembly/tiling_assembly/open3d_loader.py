@@ -14,6 +14,8 @@ import sys
 import types
 from typing import Any, NoReturn
 
+from tiling_assembly.interrupts import postponed_signals
+
 _VIEWER = "open3d.visualization.draw_plotly"
 
 
@@ -34,6 +36,7 @@ def import_open3d() -> types.ModuleType:
         for name in ("get_plotly_fig", "draw_plotly", "draw_plotly_server"):
             setattr(viewer, name, _viewer_unavailable)
         sys.modules[_VIEWER] = viewer
-    import open3d
+    with postponed_signals():  # interrupted, Open3D's import makes the process exit 1 at its end
+        import open3d
 
     return open3d

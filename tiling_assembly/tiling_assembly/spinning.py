@@ -8,20 +8,19 @@ Two things in rclpy Jazzy make a plain `rclpy.init` + `spin` noisy at Ctrl-C:
   right after setting it), so a node destroyed next fails them too ("cannot use Destroyable").
 
 So rclpy's signal handlers are not installed: Ctrl-C and SIGTERM raise KeyboardInterrupt in the main
-thread, which only waits while the executor spins in a thread of its own (`Spinner`). The spinning
-then ends, the running callbacks are waited for, and only after that are the executor shut down, the
-node destroyed and the context shut down.
+thread (`tiling_assembly.interrupts`, in place from the executable's first line), which only waits
+while the executor spins in a thread of its own (`Spinner`). The spinning then ends, the running
+callbacks are waited for, and only after that are the executor shut down, the node destroyed and
+the context shut down.
 """
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from types import FrameType
 from typing import TypeVar
 
 import rclpy
@@ -29,24 +28,17 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from tiling_assembly.interrupts import raise_keyboard_interrupt_on_signals, signalled
+
 NodeT = TypeVar("NodeT", bound=Node)
 
 EXIT_BAD_INPUT = 2  # a parameter, structure file or other start-up input was rejected
 
 
-_signalled = threading.Event()  # Ctrl-C or SIGTERM arrived
-
-
-def _interrupt(signum: int, frame: FrameType | None) -> None:
-    _signalled.set()
-    raise KeyboardInterrupt
-
-
 def init_ros(args: list[str] | None = None) -> None:
     """`rclpy.init` without rclpy's signal handlers: SIGINT and SIGTERM raise KeyboardInterrupt."""
+    raise_keyboard_interrupt_on_signals()  # again: a test or tool may call run_node directly
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGINT, _interrupt)  # also when the parent shell left SIGINT ignored
-    signal.signal(signal.SIGTERM, _interrupt)
 
 
 def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exception], ...] = (), *,
@@ -58,12 +50,12 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
     `EXIT_BAD_INPUT`. Ctrl-C or SIGTERM stops the node (exit code 0), also during start-up. The node's
     `on_shutdown` runs after its callbacks have finished and before it is destroyed.
     """
-    init_ros(args)
     try:
+        init_ros(args)
         try:
             node = make_node()
         except Exception as error:
-            if _signalled.is_set():
+            if signalled.is_set():
                 # the signal broke what it interrupted on its way out: an import of a C extension
                 # (Open3D's) turns the KeyboardInterrupt into "ImportError: initialization failed"
                 return 0
@@ -95,8 +87,8 @@ def spin_until_shutdown(node: Node, executor: Executor | None = None) -> None:
     already shut down (then it is part of stopping). The caller destroys the node afterwards.
     """
     spinner = Spinner(node, executor)
-    spinner.start()
     try:
+        spinner.start()  # inside the try: a signal during the start still stops the loop
         spinner.wait()
     except KeyboardInterrupt:
         pass
@@ -130,9 +122,16 @@ class Spinner:
         # Waited on instead of the thread: in Python 3.11 a Thread.join interrupted by Ctrl-C marks
         # the thread stopped while it still runs, and a thread still in rclpy at exit aborts the process.
         self._loop_ended = threading.Event()
+        self._thread: threading.Thread | None = None
 
     def start(self) -> None:
-        threading.Thread(target=self._loop, name=f"{self.node.get_name()}_executor", daemon=True).start()
+        self._thread = threading.Thread(target=self._loop, name=f"{self.node.get_name()}_executor", daemon=True)
+        self._thread.start()
+
+    def _loop_may_run(self) -> bool:
+        """Whether the loop runs or ran. A thread that is not alive yet has not entered the loop, and
+        once `_stopping` is set it never will."""
+        return self._thread is not None and (self._thread.is_alive() or self._loop_ended.is_set())
 
     def _loop(self) -> None:
         try:
@@ -156,7 +155,7 @@ class Spinner:
         False if some callback was still running at the deadline."""
         deadline = time.monotonic() + timeout
         self._stopping.set()
-        finished = self._loop_ended.wait(timeout)
+        finished = self._loop_ended.wait(timeout) if self._loop_may_run() else True
         running = getattr(self.executor, "_work_tracker", None)
 
         def wait_for_running_callbacks() -> bool:

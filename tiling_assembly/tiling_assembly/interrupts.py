@@ -1,0 +1,81 @@
+"""Ctrl-C and SIGTERM as KeyboardInterrupt, from an executable's first line of its own to its last.
+
+`ros2 launch` stops a node by sending SIGINT, later SIGTERM, to its process alone, at any moment:
+also while Python still imports rclpy, the messages or Open3D, which takes about a second and much
+longer on a loaded machine. Python's own handling then prints a traceback (SIGINT) or dies by the
+signal (SIGTERM, exit code -15). So the installed executables do not import their node module
+directly: `run_executable` first makes both signals raise KeyboardInterrupt, then imports the
+module and runs its `main`, which stops the node itself (`tiling_assembly.spinning.run_node`).
+
+This module imports nothing but the standard library, so that the handlers are in place a few
+milliseconds after the interpreter starts. What comes before (the interpreter's own start and
+the script setuptools generates, ~50 ms) cannot be covered from Python.
+"""
+
+from __future__ import annotations
+
+import importlib
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import FrameType
+
+signalled = threading.Event()  # Ctrl-C or SIGTERM arrived
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    signalled.set()
+    raise KeyboardInterrupt
+
+
+def raise_keyboard_interrupt_on_signals() -> None:
+    """SIGINT and SIGTERM raise KeyboardInterrupt in the main thread (also SIGINT when the parent
+    left it ignored, as a shell does for background jobs)."""
+    signal.signal(signal.SIGINT, _interrupt)
+    signal.signal(signal.SIGTERM, _interrupt)
+
+
+@contextmanager
+def postponed_signals() -> Iterator[None]:
+    """SIGINT and SIGTERM arriving within the block take effect at its end, as if sent then.
+
+    For work that a KeyboardInterrupt must not cut in two. Open3D's import, interrupted, leaves
+    tensors allocated that Open3D's own check at program end counts as leaks: it then calls
+    `exit(1)` after Python has exited 0. Only the main thread receives Python's signals, so in
+    another thread this changes nothing; neither does it for a handler not set from Python.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    arrived: list[int] = []
+    handled = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) is not None]
+    previous = {s: signal.signal(s, lambda signum, frame: arrived.append(signum)) for s in handled}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if arrived:
+            signal.raise_signal(arrived[0])  # now handled as it would have been
+
+
+def run_executable(module_name: str, interrupted_exit_code: int = 0) -> int:
+    """`module_name.main()` as the whole life of a process; its exit code.
+
+    A signal during the module's import ends the process with `interrupted_exit_code` and nothing
+    on the terminal: nothing has started yet that would need stopping. Once `main` runs, stopping is
+    its own job; a KeyboardInterrupt it lets out still ends the process quietly.
+    """
+    raise_keyboard_interrupt_on_signals()
+    try:
+        main = importlib.import_module(module_name).main
+        return int(main() or 0)
+    except KeyboardInterrupt:
+        return interrupted_exit_code
+    except Exception:
+        if signalled.is_set():
+            # the signal broke an import on its way out: a C extension's initialisation (Open3D's)
+            # turns the KeyboardInterrupt into "ImportError: initialization failed"
+            return interrupted_exit_code
+        raise

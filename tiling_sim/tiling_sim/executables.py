@@ -1,0 +1,14 @@
+"""The executables this package installs (setup.py). Each catches Ctrl-C and SIGTERM before its
+module and the ROS libraries load: `ros2 launch` may stop a node while it still imports them
+(`tiling_assembly.interrupts`)."""
+
+from tiling_assembly.interrupts import run_executable
+
+
+def experiment() -> int:
+    """Not a node: the runner of the team; an interruption exits 130, as it does once running."""
+    return run_executable("tiling_sim.experiment", interrupted_exit_code=130)
+
+
+def sim_world() -> int:
+    return run_executable("tiling_sim.world_node")

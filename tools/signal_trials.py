@@ -1,0 +1,588 @@
+#!/usr/bin/env python3
+"""Signal every node executable at a random moment and check that it stops cleanly.
+
+`ros2 launch` stops its nodes by sending SIGINT (then SIGTERM) to each node's process alone, at
+whatever moment the user presses Ctrl-C: during the imports, while rclpy starts, while a driver
+waits for its port or the assembly node for /plan, in the middle of a callback. This harness does
+the same without launch: it starts a node's executable as `ros2 run` would (the installed
+`lib/<package>/<executable>`, with the environment of the workspace), waits a random delay, sends
+SIGINT or SIGTERM to that pid alone and waits for the exit. A trial fails when the process exits
+with a code other than 0, prints a traceback or "terminate called", leaves processes behind, or
+is still running `exit_timeout` seconds after the signal.
+
+    tools/workspace-env python tools/signal_trials.py [--trials N] [--max-delay S] [--parallel K]
+        [--load | --load-share F] [--only NAME[,NAME...]] [--seed N] [--log-dir DIR] [--list]
+
+Every trial runs in a private ROS domain on this host (tiling_sim.ros_domain). Device emulators
+on pseudo-terminals stand in for the robots' hardware; a recorded bag replayed in a loop keeps
+vi_node inspecting. `--load` runs every trial with one busy-loop process per core; `--load-share`
+runs that share of each scenario's trials so, after the others. No ROS import here: the harness
+only starts processes and reads their logs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from tiling_sim.ros_domain import claim_domain_id  # ROS-free: a lock file per domain id
+
+REPO = Path(__file__).resolve().parent.parent
+STRUCTURE = str(REPO / "config" / "structures" / "paper_14.yaml")
+BAG = str(REPO / "tests" / "data" / "vi_scans" / "paper_qvga")
+NOISE = ("Traceback", "terminate called", "Fatal Python error", "Segmentation fault", "Exception ignored")
+TARGET_MARK = "SIGNAL_TRIAL_TARGET"  # in the target's environment, inherited by whatever it starts
+TRIAL_DIR = "{trial_dir}"  # replaced in every argument by the trial's own folder (ports, reports)
+
+
+def params_file(name: str) -> tuple[str, str]:
+    return "--params-file", str(REPO / "config" / f"{name}.yaml")
+
+
+@dataclass(frozen=True)
+class Command:
+    """An installed executable and its arguments, as `ros2 run PACKAGE EXECUTABLE ARGS` runs it."""
+
+    package: str
+    executable: str
+    arguments: tuple[str, ...] = ()
+
+    def argv(self, trial_dir: Path) -> list[str]:
+        arguments = [a.replace(TRIAL_DIR, str(trial_dir)) for a in self.arguments]
+        return [str(executable_path(self.package, self.executable)), *arguments]
+
+
+@dataclass(frozen=True)
+class Helper:
+    """A process the target needs (a device emulator, a bag replayer, another node); never signalled
+    by the trial. `ready_text`: wait until its output shows this; `restart`: start it again whenever
+    it exits, so that the target keeps getting work for the whole trial."""
+
+    name: str
+    command: Command
+    ready_text: str | None = None
+    restart: bool = False
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One executable brought to one realistic state: its command line and the helpers it needs.
+
+    `startup_span`: about how long (s) it takes to reach its steady state; start-up-biased delays
+    fall within it. `clean_exit_codes`: what a clean stop exits with (a command-line tool that
+    reports an interruption may exit 130). `extra_noise`: log texts that are failures for it."""
+
+    name: str
+    target: Command
+    helpers: tuple[Helper, ...] = ()
+    startup_span: float = 3.0
+    clean_exit_codes: tuple[int, ...] = (0,)
+    extra_noise: tuple[str, ...] = ()
+
+    @property
+    def executable(self) -> str:
+        return self.target.executable
+
+
+def node(package: str, executable: str, *arguments: str) -> Command:
+    return Command(package, executable, ("--ros-args", *arguments))
+
+
+def emulator(kind: str, *arguments: str) -> Helper:
+    command = Command("hardware_drivers", f"{kind}_emulator", ("--port", f"{TRIAL_DIR}/{kind}", *arguments))
+    return Helper(f"{kind}_emulator", command, ready_text="ready")
+
+
+def driver(executable: str, port: str, *arguments: str) -> Command:
+    return node("hardware_drivers", executable, "-r", "__ns:=/robot1", *params_file("hardware_drivers"),
+                "-p", f"port:={port}", *arguments)
+
+
+def scenarios() -> list[Scenario]:
+    """Every node executable the packages install, each in the states a user meets it in."""
+    structure = f"structure_file:={STRUCTURE}"
+    team = "robot_names:=[robot1, robot2]"
+    arm = (*params_file("crustcrawler_arm"),)
+    planner = Helper("planner_node", node("planner_node", "planner_node", *params_file("planner_node"),
+                                          "-p", structure, "-p", team))
+    replayer = Helper("replay_bag", Command("tiling_sim", "replay_bag", (
+        "--bag", BAG, "--rate", "0", "--gap", "0.3", "--wait-subscribers", "60", "--linger", "0.2")),
+        restart=True)
+    missing_port = f"{TRIAL_DIR}/no_device"
+    return [
+        Scenario("planner_node", node("planner_node", "planner_node", *params_file("planner_node"),
+                                      "-p", structure, "-p", team)),
+        Scenario("auction_node", node("auction_node", "auction_node", *params_file("auction_node"))),
+        Scenario("auction_node (with a plan)", node("auction_node", "auction_node", *params_file("auction_node")),
+                 helpers=(planner,)),
+        Scenario("assembly_node", node("assembly_node", "assembly_node", "-r", "__ns:=/robot1",
+                                       *params_file("assembly_node"))),
+        Scenario("assembly_node (with a plan)", node("assembly_node", "assembly_node", "-r", "__ns:=/robot1",
+                                                     *params_file("assembly_node")), helpers=(planner,)),
+        Scenario("vi_node", node("vi_node", "vi_node", "-r", "__ns:=/vi", *params_file("vi_node"),
+                                 "-p", structure), startup_span=6.0),
+        Scenario("vi_node (inspecting)", node("vi_node", "vi_node", "-r", "__ns:=/vi", *params_file("vi_node"),
+                                              "-p", structure), helpers=(replayer,), startup_span=6.0),
+        Scenario("vi_explorer", node("vi_node", "vi_explorer", "-r", "__ns:=/vi", *params_file("vi_node"),
+                                     "-p", structure)),
+        Scenario("sim_world", node("tiling_sim", "sim_world", *params_file("vi_node"), *params_file("tiling_sim"),
+                                   "-p", structure, "-p", team, "-p", "wait_for_start:=true"),
+                 startup_span=6.0),
+        Scenario("create_base", driver("create_base", f"{TRIAL_DIR}/create"), helpers=(emulator("create"),)),
+        Scenario("create_base (no device)", driver("create_base", missing_port)),
+        Scenario("crustcrawler_arm", driver("crustcrawler_arm", f"{TRIAL_DIR}/dynamixel", *arm),
+                 helpers=(emulator("dynamixel"),)),
+        Scenario("crustcrawler_arm (no device)", driver("crustcrawler_arm", missing_port, *arm)),
+        Scenario("hokuyo_urg", driver("hokuyo_urg", f"{TRIAL_DIR}/urg"), helpers=(emulator("urg"),)),
+        Scenario("hokuyo_urg (no device)", driver("hokuyo_urg", missing_port)),
+        Scenario("m3_robot", node("hardware_drivers", "m3_robot", "-r", "__ns:=/robot1",
+                                  *params_file("hardware_drivers"), *arm, "-p", structure)),
+        Scenario("base_navigator", node("hardware_drivers", "base_navigator", "-r", "__ns:=/vi",
+                                        *params_file("hardware_drivers"))),
+        Scenario("base_navigator (with a base)",
+                 node("hardware_drivers", "base_navigator", "-r", "__ns:=/robot1", *params_file("hardware_drivers")),
+                 helpers=(emulator("create"), Helper("create_base", driver("create_base", f"{TRIAL_DIR}/create")))),
+        Scenario("experiment", Command("tiling_sim", "experiment", (
+            "--trials", "1", "--removals", "1", "--no-baseline", "--quiet", "--report", f"{TRIAL_DIR}/report")),
+            startup_span=10.0, clean_exit_codes=(0, 130), extra_noise=("did not stop cleanly",)),
+    ]
+
+
+@dataclass(frozen=True)
+class TrialSettings:
+    trials: int = 10  # per scenario
+    max_delay: float = 20.0  # s, longest wait before the signal
+    startup_share: float = 0.3  # of the trials signalled within the scenario's start-up span
+    parallel: int = 2  # trials at once
+    load_share: float = 0.0  # of the trials run with a busy-loop process on every core
+    only: tuple[str, ...] = ()  # scenario or executable names; empty: all
+    seed: int = 1
+    exit_timeout: float = 10.0  # s after the signal
+    log_dir: Path = field(default_factory=lambda: Path(tempfile.gettempdir()) / "signal_trials")
+
+
+@dataclass(frozen=True)
+class TrialPlan:
+    scenario: Scenario
+    number: int
+    signal: signal.Signals
+    delay: float
+    under_load: bool
+
+    @property
+    def label(self) -> str:
+        return f"{self.scenario.name} #{self.number} {self.signal.name} at {self.delay:.2f} s"
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    plan: TrialPlan
+    exit_code: int | None
+    stop_seconds: float | None  # from the signal to the exit
+    failure: str | None  # None: a clean stop
+    log_path: Path
+    caught_signals: bool = True  # the process had its own handlers in place when signalled
+
+    @property
+    def outcome(self) -> str:
+        """clean, failed, or too early: failed, but signalled before the process could catch signals
+        (the interpreter or the script setuptools generates was still starting: no code of ours ran)."""
+        if self.failure is None:
+            return "clean"
+        return "failed" if self.caught_signals else "too early"
+
+
+# -- locating executables (as `ros2 run` does: the ament index on AMENT_PREFIX_PATH)
+
+def executable_path(package: str, name: str) -> Path:
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix and (Path(prefix) / "share/ament_index/resource_index/packages" / package).exists():
+            path = Path(prefix) / "lib" / package / name
+            if path.exists():
+                return path
+    raise RuntimeError(f"no executable {name} in package {package} on AMENT_PREFIX_PATH "
+                       "(build the workspace and run this under tools/workspace-env)")
+
+
+def selected(all_scenarios: Sequence[Scenario], only: Sequence[str]) -> list[Scenario]:
+    if not only:
+        return list(all_scenarios)
+    chosen = [s for s in all_scenarios if s.name in only or s.executable in only]
+    unknown = [name for name in only if not any(name in (s.name, s.executable) for s in all_scenarios)]
+    if unknown:
+        raise ValueError(f"no scenario or executable named {', '.join(unknown)}")
+    return chosen
+
+
+# -- planning: which signal, when, under load or not
+
+def plan_trials(settings: TrialSettings, chosen: Sequence[Scenario]) -> list[TrialPlan]:
+    """Each scenario's trials: SIGINT and SIGTERM in equal shares, delays drawn from the seed; the
+    load share of each scenario last. Scenarios interleave so that parallel trials differ."""
+    rng = random.Random(settings.seed)
+    per_scenario = []
+    for scenario in chosen:
+        signals = [signal.SIGINT, signal.SIGTERM] * (settings.trials // 2 + 1)
+        signals = signals[: settings.trials]
+        rng.shuffle(signals)
+        loaded_from = settings.trials - round(settings.trials * settings.load_share)
+        per_scenario.append([
+            TrialPlan(scenario, k + 1, signals[k], draw_delay(rng, settings, scenario), k >= loaded_from)
+            for k in range(settings.trials)
+        ])
+    interleaved = [plans[k] for k in range(settings.trials) for plans in per_scenario]
+    return sorted(interleaved, key=lambda p: p.under_load)  # stable: the loaded phase after the other
+
+
+def draw_delay(rng: random.Random, settings: TrialSettings, scenario: Scenario) -> float:
+    if rng.random() < settings.startup_share:
+        return rng.uniform(0.0, min(scenario.startup_span, settings.max_delay))
+    return rng.uniform(0.0, settings.max_delay)
+
+
+# -- processes
+
+_live: set[subprocess.Popen[bytes]] = set()  # every process a trial started, for Ctrl-C of the harness
+_live_lock = threading.Lock()
+
+
+def start_process(argv: list[str], env: dict[str, str], log_path: Path) -> subprocess.Popen[bytes]:
+    """A process in a session of its own, as launch's nodes are detached from our terminal: only the
+    trial's own signal reaches it."""
+    with open(log_path, "ab") as log:
+        process = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                   env=env, cwd=REPO, start_new_session=True)
+    with _live_lock:
+        _live.add(process)
+    return process
+
+
+def kill_session(process: subprocess.Popen[bytes]) -> None:
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    process.wait()
+    with _live_lock:
+        _live.discard(process)
+
+
+def stop_politely(process: subprocess.Popen[bytes], grace: float = 5.0) -> None:
+    if process.poll() is None:
+        try:
+            os.killpg(process.pid, signal.SIGINT)
+            process.wait(grace)
+        except (ProcessLookupError, PermissionError, subprocess.TimeoutExpired):
+            pass
+    kill_session(process)
+
+
+def kill_everything_started() -> None:
+    with _live_lock:
+        processes = list(_live)
+    for process in processes:
+        kill_session(process)
+
+
+class RunningHelper:
+    """A helper process for the length of one trial (restarted when it exits, if it asks for it)."""
+
+    def __init__(self, helper: Helper, argv: list[str], env: dict[str, str], log_path: Path) -> None:
+        self.helper, self.argv, self.env, self.log_path = helper, argv, env, log_path
+        self.process = start_process(argv, env, log_path)
+        self._stopping = threading.Event()
+        self._watcher: threading.Thread | None = None
+        if helper.restart:
+            self._watcher = threading.Thread(target=self._keep_running, daemon=True)
+            self._watcher.start()
+
+    def _keep_running(self) -> None:
+        while not self._stopping.wait(0.1):
+            if self.process.poll() is not None:
+                kill_session(self.process)
+                self.process = start_process(self.argv, self.env, self.log_path)
+
+    def wait_ready(self, timeout: float = 60.0) -> None:
+        text = self.helper.ready_text
+        deadline = time.monotonic() + timeout
+        while text is not None and text not in self.log_path.read_text(errors="replace"):
+            if self.process.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"helper {self.helper.name} did not print '{text}' (see {self.log_path})")
+            time.sleep(0.05)
+
+    def stop(self) -> None:
+        self._stopping.set()
+        if self._watcher is not None:
+            self._watcher.join()
+        stop_politely(self.process)
+
+
+@contextmanager
+def private_ros_domain() -> Iterator[dict[str, str]]:
+    """Environment variables of a ROS domain id no other run on this host holds, for one trial."""
+    domain, lock = claim_domain_id()
+    try:
+        yield {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    finally:
+        lock.close()
+
+
+@contextmanager
+def cpu_hogs(count: int) -> Iterator[None]:
+    """One busy loop per core, for trials under CPU load."""
+    hogs = [subprocess.Popen([sys.executable, "-S", "-c", "while True: pass"]) for _ in range(count)]
+    try:
+        yield
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+
+
+# -- one trial
+
+def run_trial(plan: TrialPlan, settings: TrialSettings) -> TrialResult:
+    name = f"{slug(plan.scenario.name)}_{plan.number:03d}_{plan.signal.name}"
+    trial_dir = Path(tempfile.mkdtemp(prefix=f"{name}_", dir=settings.log_dir))
+    log_path = trial_dir / "target.log"
+    with private_ros_domain() as domain:
+        env = {**os.environ, **domain, "PYTHONUNBUFFERED": "1"}
+        helpers = [RunningHelper(h, h.command.argv(trial_dir), env, trial_dir / f"{h.name}.log")
+                   for h in plan.scenario.helpers]
+        try:
+            for helper in helpers:
+                helper.wait_ready()
+            target_env = {**env, TARGET_MARK: str(trial_dir)}
+            target = start_process(plan.scenario.target.argv(trial_dir), target_env, log_path)
+            return signal_and_judge(plan, settings, target, log_path)
+        finally:
+            for helper in reversed(helpers):
+                helper.stop()
+
+
+def signal_and_judge(plan: TrialPlan, settings: TrialSettings, target: subprocess.Popen[bytes],
+                     log_path: Path) -> TrialResult:
+    try:
+        target.wait(plan.delay)
+        code = target.returncode
+        return TrialResult(plan, code, None, f"exited by itself (code {code}) before the signal: "
+                           f"{last_line(log_path)}", log_path)
+    except subprocess.TimeoutExpired:
+        pass
+    caught = catches_sigterm(target.pid)
+    os.kill(target.pid, plan.signal)  # that process alone, as launch does
+    signalled = time.monotonic()
+    try:
+        code = target.wait(settings.exit_timeout)
+    except subprocess.TimeoutExpired:
+        kill_session(target)
+        return TrialResult(plan, None, None, f"still running {settings.exit_timeout:g} s after "
+                           f"{plan.signal.name}: {last_line(log_path)}", log_path, caught)
+    stop_seconds = time.monotonic() - signalled
+    kill_session(target)  # anything left in its session
+    failure = judge_exit(plan.scenario, code, log_path) or leftovers(log_path.parent)
+    return TrialResult(plan, code, stop_seconds, failure, log_path, caught)
+
+
+def catches_sigterm(pid: int) -> bool:
+    """Whether the process has a handler of its own for SIGTERM (Python catches SIGINT from its very
+    start, SIGTERM only once a program asks: `tiling_assembly.interrupts` sets both together)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    caught = next((line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:")), "0")
+    return bool(int(caught, 16) & (1 << (signal.SIGTERM - 1)))
+
+
+def judge_exit(scenario: Scenario, code: int, log_path: Path) -> str | None:
+    lines = log_path.read_text(errors="replace").splitlines()
+    for k, line in enumerate(lines):
+        if any(marker in line for marker in (*NOISE, *scenario.extra_noise)):
+            return f"exit code {code}: {line.strip()}{exception_after(lines, k)}"
+    if code not in scenario.clean_exit_codes:
+        return f"exit code {code}: {last_line(log_path)}"
+    return None
+
+
+def exception_after(lines: Sequence[str], start: int) -> str:
+    """' ... <the exception>' when lines[start] opens a traceback: the first unindented line after it
+    says what was raised, and where is in the indented line above that."""
+    if not lines[start].startswith("Traceback"):
+        return ""
+    for k in range(start + 1, len(lines)):
+        if lines[k] and not lines[k].startswith(" "):
+            where = lines[k - 2].strip() if k >= 2 and lines[k - 2].startswith("  File") else ""
+            return f" ... {where} ... {lines[k].strip()}"
+    return ""
+
+
+def leftovers(trial_dir: Path, grace: float = 5.0) -> str | None:
+    """A failure if processes the target started are still alive `grace` s after it exited."""
+    mark = f"{TARGET_MARK}={trial_dir}".encode()
+    deadline = time.monotonic() + grace
+    while True:
+        alive = [pid for pid in marked_processes(mark)]
+        if not alive:
+            return None
+        if time.monotonic() > deadline:
+            for pid in alive:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+            return f"left {len(alive)} process(es) running: {', '.join(command_line(p) for p in alive)}"
+        time.sleep(0.1)
+
+
+def marked_processes(mark: bytes) -> list[int]:
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            if mark in (entry / "environ").read_bytes().split(b"\0"):
+                found.append(int(entry.name))
+        except OSError:
+            continue  # exited meanwhile, or not ours
+    return found
+
+
+def command_line(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")[:80]
+    except OSError:
+        return str(pid)
+
+
+def last_line(log_path: Path) -> str:
+    lines = [line.strip() for line in log_path.read_text(errors="replace").splitlines() if line.strip()]
+    return lines[-1] if lines else "(no output)"
+
+
+def slug(text: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in text).strip("_")
+
+
+# -- a campaign
+
+def run_campaign(settings: TrialSettings, chosen: Sequence[Scenario],
+                 progress: Callable[[str], None] = print) -> list[TrialResult]:
+    settings.log_dir.mkdir(parents=True, exist_ok=True)
+    plans = plan_trials(settings, chosen)
+    results: list[TrialResult] = []
+    try:
+        for under_load in (False, True):
+            phase = [p for p in plans if p.under_load == under_load]
+            if not phase:
+                continue
+            hogs = cpu_hogs(os.cpu_count() or 1) if under_load else _no_hogs()
+            with hogs, ThreadPoolExecutor(max_workers=settings.parallel) as pool:
+                for result in pool.map(lambda p: run_trial(p, settings), phase):
+                    results.append(result)
+                    progress(describe(result, len(results), len(plans)))
+    finally:
+        kill_everything_started()
+    return results
+
+
+@contextmanager
+def _no_hogs() -> Iterator[None]:
+    yield
+
+
+def describe(result: TrialResult, done: int, total: int) -> str:
+    load = " under load" if result.plan.under_load else ""
+    if result.outcome == "clean":
+        outcome = f"ok, stopped in {result.stop_seconds:.1f} s"
+    else:
+        outcome = f"{result.outcome.upper()}: {result.failure} ({result.log_path})"
+    return f"[{done:4d}/{total}] {result.plan.label}{load}: {outcome}"
+
+
+def table(results: Sequence[TrialResult]) -> str:
+    """Per scenario: trials, SIGINT/SIGTERM, under load, clean stops, failures, signals too early for
+    any code of ours, the slowest stop; then every trial that did not stop cleanly."""
+    header = (f"{'scenario':30s} {'trials':>6s} {'SIGINT':>6s} {'SIGTERM':>7s} {'load':>5s} {'clean':>5s} "
+              f"{'failed':>6s} {'too early':>9s} {'slowest stop':>12s}")
+    rows = [header, "-" * len(header)]
+    for name in dict.fromkeys(r.plan.scenario.name for r in results):
+        mine = [r for r in results if r.plan.scenario.name == name]
+        stops = [r.stop_seconds for r in mine if r.stop_seconds is not None]
+        count = {outcome: sum(r.outcome == outcome for r in mine) for outcome in ("clean", "failed", "too early")}
+        rows.append(
+            f"{name:30s} {len(mine):6d} {sum(r.plan.signal == signal.SIGINT for r in mine):6d} "
+            f"{sum(r.plan.signal == signal.SIGTERM for r in mine):7d} {sum(r.plan.under_load for r in mine):5d} "
+            f"{count['clean']:5d} {count['failed']:6d} {count['too early']:9d} "
+            f"{(max(stops) if stops else 0.0):10.1f} s")
+    unclean = [r for r in results if r.outcome != "clean"]
+    failed = sum(r.outcome == "failed" for r in results)
+    rows.append(f"{len(results)} trials, {failed} failed, {len(unclean) - failed} signalled too early")
+    rows += [f"{r.outcome.upper()} {r.plan.label}{' under load' if r.plan.under_load else ''}: {r.failure} "
+             f"({r.log_path})" for r in unclean]
+    return "\n".join(rows)
+
+
+# -- command line
+
+def parse_args(argv: Sequence[str] | None) -> tuple[TrialSettings, bool]:
+    parser = argparse.ArgumentParser(prog="signal_trials", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--trials", type=int, default=10, help="trials per scenario (default 10)")
+    parser.add_argument("--max-delay", type=float, default=20.0, help="longest wait before the signal, s")
+    parser.add_argument("--startup-share", type=float, default=0.3,
+                        help="share of the trials signalled during the scenario's start-up (default 0.3)")
+    parser.add_argument("--parallel", type=int, default=2, help="trials at once (default 2)")
+    load = parser.add_mutually_exclusive_group()
+    load.add_argument("--load", action="store_true", help="every trial with a busy loop on every core")
+    load.add_argument("--load-share", type=float, default=0.0, help="share of the trials under load")
+    parser.add_argument("--only", default="", help="comma-separated scenario or executable names")
+    parser.add_argument("--seed", type=int, default=int(time.time()), help="seed of the delays and signals")
+    parser.add_argument("--exit-timeout", type=float, default=10.0, help="s a node may take to exit")
+    parser.add_argument("--log-dir", type=Path, default=None, help="folder of the trials' logs")
+    parser.add_argument("--list", action="store_true", help="list the scenarios and exit")
+    args = parser.parse_args(argv)
+    if args.trials < 1 or args.parallel < 1 or args.max_delay < 0 or not 0 <= args.load_share <= 1:
+        parser.error("--trials and --parallel must be >= 1, --max-delay >= 0, --load-share within [0, 1]")
+    settings = TrialSettings(
+        trials=args.trials, max_delay=args.max_delay, startup_share=args.startup_share, parallel=args.parallel,
+        load_share=1.0 if args.load else args.load_share, seed=args.seed, exit_timeout=args.exit_timeout,
+        only=tuple(name.strip() for name in args.only.split(",") if name.strip()),
+    )
+    if args.log_dir is not None:
+        settings = replace(settings, log_dir=args.log_dir)
+    return settings, args.list
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    settings, list_only = parse_args(argv)
+    try:
+        chosen = selected(scenarios(), settings.only)
+        if list_only:
+            print("\n".join(f"{s.name}: {s.target.package} {s.executable}" for s in chosen))
+            return 0
+        print(f"seed {settings.seed}, logs in {settings.log_dir}", flush=True)
+        results = run_campaign(settings, chosen, progress=lambda line: print(line, flush=True))
+    except (RuntimeError, ValueError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    print(table(results))
+    return 1 if any(r.outcome == "failed" for r in results) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
