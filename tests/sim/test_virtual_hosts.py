@@ -52,6 +52,7 @@ def hosts() -> Iterator[VirtualHosts]:
         made.add_host("lossy5", LinkShape(loss_percent=5.0))
         made.add_host("lossy15", LinkShape(loss_percent=15.0))
         made.add_host("slow", LinkShape(rate_mbit=5.0))
+        made.add_host("far", LinkShape(delay_ms=30.0))
         yield made
 
 
@@ -154,7 +155,7 @@ def resolve_neighbour(sender: socket.socket, receiver: socket.socket, address: s
 
 
 def test_every_host_reaches_every_other_and_has_its_own_name(hosts: VirtualHosts) -> None:
-    names = ["robot", "base", "slow"]
+    names = ["robot", "base", "slow", "far"]
     for source in names:
         for target in names:
             if source != target:
@@ -162,7 +163,7 @@ def test_every_host_reaches_every_other_and_has_its_own_name(hosts: VirtualHosts
     hostname = subprocess.run(hosts.command("robot", ["cat", "/proc/sys/kernel/hostname"]),
                               capture_output=True, text=True, check=True)  # fmt: skip
     assert hostname.stdout.strip() == "robot"
-    assert {host.address for host in hosts.hosts.values()} == {f"10.213.0.{k}" for k in range(1, 6)}
+    assert {host.address for host in hosts.hosts.values()} == {f"10.213.0.{k}" for k in range(1, 7)}
 
 
 def test_multicast_reaches_every_other_host(hosts: VirtualHosts) -> None:
@@ -239,6 +240,42 @@ def test_rate_limit_holds_both_directions_near_5_mbit(hosts: VirtualHosts) -> No
     assert 4.2 < receiving < 5.2, f"slow host receiving: {receiving:.2f} Mbit/s"
     # (a lower bound: the receiver's buffer fills within the half second)
     assert unshaped_mbit > 3 * 5, f"an unshaped link carries {unshaped_mbit:.1f} Mbit/s: the limit is the shaping"
+
+
+def test_delay_line_delays_every_packet(hosts: VirtualHosts) -> None:
+    """30 ms each way on "far"'s link: a round trip robot -> far -> robot takes 60 ms and a little."""
+    pinger = udp_socket(hosts, "robot")
+    echo = udp_socket(hosts, "far", PORT + 3)
+    pinger.settimeout(2.0)
+    echo.settimeout(0.1)
+    done = threading.Event()
+
+    def answer() -> None:
+        while not done.is_set():
+            try:
+                data, sender = echo.recvfrom(64)
+            except TimeoutError:
+                continue
+            echo.sendto(data, sender)
+
+    answering = threading.Thread(target=answer)
+    answering.start()
+    round_trips = []
+    with pinger, echo:
+        for _ in range(40):
+            started = time.monotonic()
+            pinger.sendto(b"ping", (hosts.host("far").address, PORT + 3))
+            pinger.recvfrom(64)
+            round_trips.append((time.monotonic() - started) * 1000)
+            time.sleep(0.01)
+        done.set()
+        answering.join()
+    round_trips.sort()
+    median = round_trips[len(round_trips) // 2]
+    print(f"round trip through a 30 ms delay line: min {round_trips[0]:.1f}, median {median:.1f}, "
+          f"max {round_trips[-1]:.1f} ms")  # fmt: skip
+    assert round_trips[0] >= 60.0, "never faster than the delay"
+    assert median < 70.0, "the delay line adds little of its own"
 
 
 def test_outage_stops_both_directions_and_restores(hosts: VirtualHosts) -> None:

@@ -19,13 +19,14 @@ def main() -> None:
     with VirtualHosts(sys.argv[1]) as hosts, ProcessGroup() as group:
         robot = hosts.add_host("robot", LinkShape(loss_percent=5.0, rate_mbit=5.0))
         base = hosts.add_host("base")
+        far = hosts.add_host("far", LinkShape(delay_ms=20.0))
         hosts.set_link(robot, False)
-        for host in (robot, base):
+        for host in (robot, base, far):
             group.start(host.name, hosts.command(host, ["sleep", "60"]))
         made = {
             "keepers": hosts.keeper_pids,
             "namespaces": [os.stat(f"/proc/{pid}/ns/net").st_ino for pid in hosts.keeper_pids],
-            "processes": group.pids(),
+            "processes": group.pids() + hosts.delay_line_pids,
         }
         print(json.dumps(made), flush=True)
         time.sleep(60)

@@ -10,7 +10,8 @@ Layout (one `VirtualHosts`, i.e. one run)::
 
     host "robot1" (netns, lo + eth0 10.213.0.1) ──veth── p1 ┐
     host "robot2" (netns, lo + eth0 10.213.0.2) ──veth── p2 ├─ bridge "air" in the hub netns
-    host "base"   (netns, lo + eth0 10.213.0.3) ──veth── p3 ┘   + nftables table "air" (loss, outages)
+    host "base"   (netns, lo + eth0 10.213.0.3) ──veth── p3 ┤   + nftables table "air" (loss, outages)
+    host "far"    (netns, lo + eth0 10.213.0.4) ─TAP═delay line═TAP─ p4 ┘
 
 Design choices, and why:
 
@@ -41,10 +42,14 @@ Design choices, and why:
   bucket: the medium is not shared between hosts, which real WiFi is. Outage: a frame drop for the
   host's port in both directions (an nftables set of ports that are out): the host keeps its
   carrier, as a robot out of range keeps its interface up, and no process sees an error.
-  Delay: this kernel has no qdisc that can hold packets for a time (no netem, no fq/etf for
-  earliest-departure-time pacing, no plug) and no nft `queue`; tbf's `latency` is a queue limit,
-  not a delay. The only true delay left is a user-space delay line (TAP devices and a relay process
-  holding frames), which costs CPU per packet and adds its own scheduling jitter; not done here.
+  Delay: this kernel cannot hold packets for a time (no netem; no fq or etf, which would honour a
+  departure time set by BPF; no plug qdisc; no nft `queue`), and tbf's `latency` is a queue limit,
+  not a delay. So a link with `delay_ms` is not a veth but two TAP devices (the host's `eth0` and
+  its bridge port) with a delay line between them: a process of its own that writes every frame to
+  the other side `delay_ms` after reading it, in order (niced -10, as the air must keep time on a
+  busy machine). It is a true delay, with the jitter of a user-space process: on a loaded 2-core
+  machine, 50 ms each way gave a round trip of 100.5 ms median, ~110 ms p95, a rare 180 ms; it
+  carries at most ~130 Mbit/s and costs CPU per frame. Links without delay stay veths (no cost).
 - **ROS 2 discovery: multicast SPDP on the bridge** (`ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`, the
   Jazzy default), not a Fast DDS discovery server. Multicast is how ROS 2 discovers on a real lab
   WiFi; it needs no extra process, and no host is a single point of failure (a discovery server
@@ -69,14 +74,24 @@ Needs root, `ip`/`tc` (iproute2), `nft` (nftables), `unshare`/`nsenter` (util-li
 from __future__ import annotations
 
 import ctypes
+import fcntl
+import heapq
 import ipaddress
 import itertools
 import json
 import os
+import select
 import shutil
+import struct
 import subprocess
-from collections.abc import Mapping, Sequence
+import sys
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
+
+T = TypeVar("T")
 
 BRIDGE = "air"  # the bridge in the hub namespace, and the nftables table that shapes it
 HOST_INTERFACE = "eth0"  # a host's end of its veth
@@ -116,6 +131,9 @@ _LARGEST_DATAGRAM = 65536
 _QUEUE_SECONDS = 0.25
 
 _CLONE_NEWNET = 0x40000000
+_TUNSETIFF, _IFF_TAP, _IFF_NO_PI = 0x400454CA, 0x0002, 0x1000  # <linux/if_tun.h>
+_MAX_DELAY_MS = 10_000.0
+_DELAY_LINE_FRAMES = 20_000  # frames a delay line holds at most (a queue limit, as a device has)
 
 
 class VirtualHostsError(RuntimeError):
@@ -132,17 +150,21 @@ class LinkShape:
 
     loss_percent: float = 0.0  # share of frames dropped at random, 0 <= loss < 100
     rate_mbit: float | None = None  # token-bucket rate limit in Mbit/s, None: as fast as the machine
+    delay_ms: float = 0.0  # one-way delay added by a user-space delay line; 0: a plain veth
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.loss_percent < 100.0:
             raise ValueError(f"link loss must be at least 0 and below 100 percent, not {self.loss_percent}")
         if self.rate_mbit is not None and not self.rate_mbit > 0.0:
             raise ValueError(f"link rate must be above 0 Mbit/s, not {self.rate_mbit}")
+        if not 0.0 <= self.delay_ms <= _MAX_DELAY_MS:
+            raise ValueError(f"link delay must be between 0 and {_MAX_DELAY_MS:g} ms, not {self.delay_ms}")
 
     def __str__(self) -> str:
         loss = f"{self.loss_percent:g}% loss" if self.loss_percent else "no loss"
         rate = f"{self.rate_mbit:g} Mbit/s" if self.rate_mbit is not None else "no rate limit"
-        return f"{loss}, {rate}"
+        delay = f", {self.delay_ms:g} ms delay" if self.delay_ms else ""
+        return f"{loss}, {rate}{delay}"
 
 
 @dataclass(frozen=True)
@@ -264,6 +286,94 @@ def _setns(path: str) -> None:
         os.close(fd)
 
 
+def _inside(net_namespace: str, make: Callable[[], T]) -> T:
+    """`make()` called on a short-lived thread moved into `net_namespace` (this thread stays put).
+    What it creates there (a socket, a TAP device) stays there when the thread ends."""
+    made: list[T] = []
+    failed: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            _setns(net_namespace)
+            made.append(make())
+        except BaseException as error:
+            failed.append(error)
+
+    thread = threading.Thread(target=run, name="virtual-hosts-setns")
+    thread.start()
+    thread.join()
+    if failed:
+        raise failed[0]
+    return made[0]
+
+
+def _open_tap(net_namespace: str, name: str) -> int:
+    """A TAP device called `name` in `net_namespace`; it exists as long as the returned fd is open."""
+
+    def make() -> int:
+        fd = os.open("/dev/net/tun", os.O_RDWR)
+        try:
+            fcntl.ioctl(fd, _TUNSETIFF, struct.pack("16sH", name.encode(), _IFF_TAP | _IFF_NO_PI))
+        except OSError:
+            os.close(fd)
+            raise
+        return fd
+
+    try:
+        return _inside(net_namespace, make)
+    except OSError as error:
+        raise VirtualHostsError(f"could not create the TAP device {name} for a delay line: {error}") from None
+
+
+def _start_delay_line(label: str, delay_ms: float, host_tap: int, port_tap: int) -> subprocess.Popen[str]:
+    """A process carrying frames between two TAP devices `delay_ms` late (see `_delay_line`); it owns
+    both devices (this process closes its copies) and exits at end-of-file on its stdin."""
+    argv = [sys.executable, os.path.abspath(__file__), "delay-line", str(delay_ms), str(host_tap), str(port_tap)]
+    try:
+        relay = subprocess.Popen(
+            [*argv, label],
+            stdin=subprocess.PIPE,
+            pass_fds=(host_tap, port_tap),
+            text=True,
+            start_new_session=True,
+        )
+    except OSError as error:
+        raise VirtualHostsError(f"could not start the delay line ({label}): {error}") from None
+    finally:
+        os.close(host_tap)
+        os.close(port_tap)
+    return relay
+
+
+def _delay_line(delay_ms: float, host_tap: int, port_tap: int) -> None:
+    """Forward every frame read from one TAP device to the other, `delay_ms` after it was read, in
+    order; return at end-of-file on stdin (the owner closed the pipe, or died)."""
+    if os.geteuid() == 0:
+        os.nice(-10)  # the air must keep time when the machine is busy
+    delay = delay_ms / 1000.0
+    other = {host_tap: port_tap, port_tap: host_tap}
+    owner = sys.stdin.fileno()
+    due: list[tuple[float, int, int, bytes]] = []  # (time to write, sequence, device, frame)
+    sequence = itertools.count()
+    while True:
+        wait = max(0.0, due[0][0] - time.monotonic()) if due else None
+        readable, _, _ = select.select([host_tap, port_tap, owner], [], [], wait)
+        if owner in readable and not os.read(owner, 1):
+            return
+        arrived = time.monotonic()
+        for device in readable:
+            if device != owner:
+                frame = os.read(device, 65536)
+                if len(due) < _DELAY_LINE_FRAMES:
+                    heapq.heappush(due, (arrived + delay, next(sequence), other[device], frame))
+        while due and due[0][0] <= time.monotonic():
+            _, _, device, frame = heapq.heappop(due)
+            try:
+                os.write(device, frame)
+            except OSError:
+                pass  # the device is down (link being removed): the frame is lost, as on a wire
+
+
 def _tbf(device: str, rate_mbit: float) -> list[str]:
     """`tc` arguments for a token bucket of `rate_mbit` on `device`, sized as explained above."""
     bytes_per_second = rate_mbit * 1e6 / 8
@@ -289,6 +399,7 @@ class VirtualHosts:
         self.network = ipaddress.ip_network(subnet)
         self.hosts: dict[str, VirtualHost] = {}
         self._keepers: list[subprocess.Popen[str]] = []
+        self._relays: list[subprocess.Popen[str]] = []  # delay lines
         self._out: set[str] = set()  # ports whose link is cut
         self._free_addresses = self.network.hosts()
         self._port_numbers = itertools.count(1)  # never reused, even after a host that failed half-way
@@ -345,9 +456,16 @@ class VirtualHosts:
         return host
 
     def _connect(self, host: VirtualHost) -> None:
-        """A veth from the host's `eth0` to a bridge port; its address; loopback; multicast route."""
-        self._hub_run(["ip", "link", "add", host.port, "type", "veth", "peer", "name", HOST_INTERFACE,
-                       "netns", str(host.keeper_pid)], f"create the link of {host.name}")  # fmt: skip
+        """A link from the host's `eth0` to a bridge port; its address; loopback; multicast route.
+
+        The link is a veth pair, or, for a delay, two TAP devices with a delay line between them."""
+        if host.link.delay_ms:
+            host_tap = _open_tap(host.net_namespace, HOST_INTERFACE)
+            port_tap = _open_tap(f"/proc/{self._hub}/ns/net", host.port)
+            self._relays.append(_start_delay_line(self._label(host.name), host.link.delay_ms, host_tap, port_tap))
+        else:
+            self._hub_run(["ip", "link", "add", host.port, "type", "veth", "peer", "name", HOST_INTERFACE,
+                           "netns", str(host.keeper_pid)], f"create the link of {host.name}")  # fmt: skip
         self._hub_run(["ip", "link", "set", host.port, "alias", host.name, "master", BRIDGE, "up"],
                       f"attach {host.name} to the bridge")  # fmt: skip
         prefix = f"{host.address}/{self.network.prefixlen}"
@@ -385,6 +503,10 @@ class VirtualHosts:
     def keeper_pids(self) -> list[int]:
         """The processes holding this run's namespaces: the hub's first, then one per host."""
         return [keeper.pid for keeper in self._keepers]
+
+    @property
+    def delay_line_pids(self) -> list[int]:
+        return [relay.pid for relay in self._relays]
 
     # --- using ----------------------------------------------------------------------------------
 
@@ -478,9 +600,10 @@ class VirtualHosts:
         The keepers exit, and the kernel frees each namespace with all it holds. A host in which a
         process still runs lives on, cut off (loopback only), until that process exits: stop the
         processes first."""
+        relays, self._relays = self._relays, []
         keepers, self._keepers = self._keepers, []
-        for keeper in reversed(keepers):  # hosts first, then the hub
-            _stop_keeper(keeper)
+        for process in [*relays, *reversed(keepers)]:  # delay lines, hosts, then the hub
+            _stop_keeper(process)
         self.hosts.clear()
 
     def __enter__(self) -> VirtualHosts:
@@ -490,7 +613,7 @@ class VirtualHosts:
         self.close()
 
     def __del__(self) -> None:
-        if getattr(self, "_keepers", None):
+        if getattr(self, "_keepers", None) or getattr(self, "_relays", None):
             self.close()
 
 
@@ -510,3 +633,7 @@ def keeper_processes(run_id: str | None = None) -> list[int]:
             found.append(int(entry))
     return found
 
+
+if __name__ == "__main__" and sys.argv[1:2] == ["delay-line"]:
+    # python virtual_hosts.py delay-line DELAY_MS HOST_TAP_FD PORT_TAP_FD LABEL (see _start_delay_line)
+    _delay_line(float(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]))
