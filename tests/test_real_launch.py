@@ -18,7 +18,7 @@ import subprocess
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pytest
@@ -57,7 +57,8 @@ pytestmark = [
 class LaunchCase:
     package: str
     file: str
-    arguments: tuple[str, ...]  # with {create}, {arm}, {urg} (emulator ports) and {structure}
+    variant: str
+    arguments: tuple[str, ...]  # with {create}, {arm}, {urg} (emulator ports), {absent}, {structure}
     nodes: tuple[str, ...]  # fully qualified node names that must all be in the graph
     emulators: tuple[str, ...] = ()  # device emulators to start: create, arm, urg
     log_lines: tuple[str, ...] = ()  # what must be logged before the Ctrl-C (drivers connected...)
@@ -73,38 +74,57 @@ M3_DRIVERS = ("create_base", "crustcrawler_arm", "hokuyo_urg", "m3_robot")
 KINECT = (f"start_kinect:=true kinect_package:={STAND_IN_KINECT} kinect_executable:={STAND_IN_KINECT} "
           "kinect_points_topic:=points").split()
 
+# The ports of devices that are not there: not the defaults (/dev/ttyUSB0...), which on a robot's
+# computer are real devices a test must not drive.
+ABSENT_DEVICES = ("base_port:={absent}/create", "arm_port:={absent}/arm", "laser_port:={absent}/urg")
+
 CASES = [
     LaunchCase(
-        "assembly_node", "assembly_robot.launch.py",
+        "assembly_node", "assembly_robot.launch.py", "docstring",
         ("namespace:=robot2", "base_port:={create}", "arm_port:={arm}", "laser_port:={urg}"),
         tuple(f"/robot2/{name}" for name in (*M3_DRIVERS, "assembly_node")),
         emulators=("create", "arm", "urg"), log_lines=tuple(CONNECTED.values()),
     ),
+    LaunchCase(  # the drivers wait for their devices (retrying) when the Ctrl-C comes
+        "assembly_node", "assembly_robot.launch.py", "devices-absent", ABSENT_DEVICES,
+        tuple(f"/robot1/{name}" for name in (*M3_DRIVERS, "assembly_node")),
+        log_lines=("port {absent}/create does not exist", "port {absent}/arm does not exist",
+                   "port {absent}/urg does not exist"),
+    ),
     LaunchCase(
-        "auction_node", "team.launch.py",
+        "auction_node", "team.launch.py", "docstring",
         ("structure_file:={structure}", "robot_names:=[robot1, robot2, robot3]"),
         ("/planner_node", "/auction_node"),
         log_lines=("14 tiles for 3 robots",),  # robot_names reached the planner as a list
     ),
     LaunchCase(
-        "hardware_drivers", "m3_robot.launch.py",
+        "auction_node", "team.launch.py", "default-robots", ("structure_file:={structure}",),
+        ("/planner_node", "/auction_node"), log_lines=("14 tiles for 2 robots",),
+    ),
+    LaunchCase(
+        "hardware_drivers", "m3_robot.launch.py", "docstring",
         ("namespace:=robot1", "base_port:={create}", "arm_port:={arm}", "laser_port:={urg}"),
         tuple(f"/robot1/{name}" for name in M3_DRIVERS),
         emulators=("create", "arm", "urg"), log_lines=tuple(CONNECTED.values()),
     ),
     LaunchCase(
-        "hardware_drivers", "vi_robot.launch.py",
+        "hardware_drivers", "vi_robot.launch.py", "docstring",
         ("base_port:={create}", *KINECT),
         ("/vi/create_base", "/vi/base_navigator", "/vi/kinect"),
         emulators=("create",), log_lines=(CONNECTED["create"],),
         published_topics=("/vi/camera/depth/points",),
     ),
     LaunchCase(
-        "vi_node", "inspection.launch.py",
+        "vi_node", "inspection.launch.py", "docstring",
         ("base_port:={create}", "structure_file:={structure}", *KINECT),
         ("/vi/create_base", "/vi/base_navigator", "/vi/kinect", "/vi/vi_node", "/vi/vi_explorer"),
         emulators=("create",), log_lines=(CONNECTED["create"],),
         published_topics=("/vi/camera/depth/points",),
+    ),
+    LaunchCase(  # no Kinect, no structure file (waits for /structure), no base
+        "vi_node", "inspection.launch.py", "devices-absent", ("base_port:={absent}/create",),
+        ("/vi/create_base", "/vi/base_navigator", "/vi/vi_node", "/vi/vi_explorer"),
+        log_lines=("port {absent}/create does not exist",),
     ),
 ]
 
@@ -193,8 +213,16 @@ class LaunchProcess:
         self._reader.join(timeout=5.0)
         return code
 
+    def leftovers(self) -> bool:
+        """Whether a process launch started is still alive (launch and its nodes share one group)."""
+        try:
+            os.killpg(self.process.pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
     def kill_everything(self) -> None:
-        """Whatever is left of launch and its nodes (one process group), after a failed test."""
+        """Whatever is left of launch and its nodes, after a failed test."""
         with contextlib.suppress(ProcessLookupError):
             os.killpg(self.process.pid, signal.SIGKILL)
         self.process.wait()
@@ -216,8 +244,9 @@ def wait_until_up(launch: LaunchProcess, observer: Node, case: LaunchCase) -> No
         missing = missing_parts(launch, observer, case)
         if not missing:
             return
-        if not launch.running() or time.monotonic() > deadline:
-            pytest.fail(f"{case.file}: not up after {STARTUP_TIMEOUT} s (launch running: {launch.running()}); "
+        if not launch.running() or "process has died" in launch.output or time.monotonic() > deadline:
+            pytest.fail(f"{case.file}: not up within {STARTUP_TIMEOUT} s or a process died "
+                        f"(launch running: {launch.running()}); "
                         f"missing {missing}; launch output:\n{launch.output[-6000:]}")
         time.sleep(0.2)
 
@@ -249,19 +278,21 @@ def assert_stopped_cleanly(case: LaunchCase, code: int | None, output: str) -> N
     assert code == 0, f"{case.file}: ros2 launch exited with {code}:\n{output[-6000:]}"
 
 
-@pytest.mark.parametrize("case", CASES, ids=lambda c: c.file)
+@pytest.mark.parametrize("case", CASES, ids=lambda c: f"{c.file}-{c.variant}")
 def test_launch_file_starts_every_node_and_stops_cleanly_at_ctrl_c(
     case: LaunchCase, stand_in_kinect_prefix: Path, tmp_path: Path,
 ) -> None:
     with own_domain() as domain, emulators(case.emulators, tmp_path) as ports, graph_observer(domain) as observer:
-        values = {**ports, "structure": str(REPO / "config" / "structures" / "paper_14.yaml")}
-        arguments = [argument.format(**values) for argument in case.arguments]
-        command = [str(REPO / "tools" / "real-launch-env"), "ros2", "launch", case.package, case.file, *arguments]
+        values = {**ports, "absent": str(tmp_path / "absent"),
+                  "structure": str(REPO / "config" / "structures" / "paper_14.yaml")}
+        case = replace(case, arguments=tuple(a.format(**values) for a in case.arguments),
+                       log_lines=tuple(line.format(**values) for line in case.log_lines))
+        command = [str(REPO / "tools" / "real-launch-env"), "ros2", "launch", case.package, case.file, *case.arguments]
         launch = LaunchProcess(command, launch_environment(domain, stand_in_kinect_prefix))
         try:
             wait_until_up(launch, observer, case)
             code = launch.interrupt(SHUTDOWN_TIMEOUT)
             assert_stopped_cleanly(case, code, launch.output)
+            assert not launch.leftovers(), f"{case.file}: a process outlived ros2 launch"
         finally:
-            if launch.running():
-                launch.kill_everything()
+            launch.kill_everything()
