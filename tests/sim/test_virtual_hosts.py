@@ -14,7 +14,6 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TypeVar
 
 import pytest
 
@@ -30,7 +29,6 @@ from tiling_sim.virtual_hosts import (
 HERE = Path(__file__).resolve().parent
 PORT = 47000
 SO_RCVBUFFORCE, SO_TIMESTAMPNS = 33, 35  # Linux socket options Python's socket module does not name
-T = TypeVar("T")
 
 
 def _unavailable() -> str:
@@ -56,27 +54,7 @@ def hosts() -> Iterator[VirtualHosts]:
         yield made
 
 
-# --- sockets on a host: made by a short-lived thread that enters the host's namespace -----------
-
-
-def on_host(hosts: VirtualHosts, host: str, make: Callable[[], T]) -> T:
-    """`make()` called in `host`'s network namespace (sockets stay there after the thread ends)."""
-    made: list[T] = []
-    failed: list[BaseException] = []
-
-    def run() -> None:
-        try:
-            hosts.enter(host)
-            made.append(make())
-        except BaseException as error:
-            failed.append(error)
-
-    thread = threading.Thread(target=run)
-    thread.start()
-    thread.join()
-    if failed:
-        raise failed[0]
-    return made[0]
+# --- sockets on a host ----------------------------------------------------------------------
 
 
 def udp_socket(hosts: VirtualHosts, host: str, port: int = 0, group: str | None = None) -> socket.socket:
@@ -91,7 +69,7 @@ def udp_socket(hosts: VirtualHosts, host: str, port: int = 0, group: str | None 
             udp.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, membership)
         return udp
 
-    return on_host(hosts, host, make)
+    return hosts.on_host(host, make)
 
 
 def send(sender: socket.socket, address: str, count: int, size: int = 200, port: int = PORT) -> None:

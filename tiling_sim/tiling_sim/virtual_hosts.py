@@ -542,6 +542,11 @@ class VirtualHosts:
         that host unless told otherwise; `command()` does not depend on where they begin."""
         _setns(self.host(host).net_namespace)
 
+    def on_host(self, host: VirtualHost | str, make: Callable[[], T]) -> T:
+        """`make()` called on a short-lived thread inside `host`'s network namespace; what it opens
+        there (a socket) stays there. For probes and tests; a program belongs in `command()`."""
+        return _inside(self.host(host).net_namespace, make)
+
     def set_link(self, host: VirtualHost | str, up: bool) -> None:
         """Cut (`up=False`) or restore a host's link: while out, every frame to or from it is dropped."""
         host = self.host(host)
@@ -614,7 +619,10 @@ class VirtualHosts:
 
     def __del__(self) -> None:
         if getattr(self, "_keepers", None) or getattr(self, "_relays", None):
-            self.close()
+            try:
+                self.close()
+            except Exception:
+                pass  # at interpreter exit; the keepers see end-of-file anyway
 
 
 def keeper_processes(run_id: str | None = None) -> list[int]:
