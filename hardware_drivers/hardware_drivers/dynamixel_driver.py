@@ -346,7 +346,7 @@ class ArmDriver(SupervisedDevice):
             else:
                 next_cycle = time.monotonic()
 
-    def _configure(self, bus: DynamixelBus, joint: JointConfig) -> None:
+    def _configure(self, bus: DynamixelBus, joint: JointConfig) -> bool:
         """Angle limits, the goal to hold, torque on. A step left unanswered leaves the joint owed
         (configured again once it answers): half configured, its servo would stay limp for good."""
         low, high = sorted(
@@ -369,17 +369,18 @@ class ArmDriver(SupervisedDevice):
                 self._configure_failing[joint.name] = time.monotonic()
                 self.health.event(Level.WARN, f"joint {joint.name} (id {joint.servo_id}) not configured "
                                   f"({error}); trying again")
-            return
+            return False
         self._unconfigured.discard(joint.name)
-        if self._configure_failing.pop(joint.name, None) is not None:
-            self.health.event(Level.OK, f"joint {joint.name} (id {joint.servo_id}) configured, torque on")
+        self._configure_failing.pop(joint.name, None)
+        return True
 
     def _configure_owed(self, bus: DynamixelBus) -> None:
         """Configure the joints still owed it that answered their last read (a silent servo would
         only cost every cycle its retries)."""
         for name in sorted(self._unconfigured):
-            if name not in self._silent and name in self._last_answer:
-                self._configure(bus, self.joints[name])
+            joint = self.joints[name]
+            if name not in self._silent and name in self._last_answer and self._configure(bus, joint):
+                self.health.event(Level.OK, f"joint {name} (id {joint.servo_id}) configured, torque on")
 
     def _apply_torque(self, bus: DynamixelBus) -> None:
         with self._lock:

@@ -18,7 +18,9 @@ tiles." One mission, in the phases of the PlaceTile action:
 Failures end the mission with a result code and one line: FAILED_NAVIGATION (no pose, timeout,
 bumper or wheel drop, goal out of reach from where the base stopped), FAILED_NO_TILE, FAILED_GRASP
 (tile out of the arm's reach, gripper closed on nothing, tile dropped), FAILED_HARDWARE (a device
-stopped answering or reports a fault), CANCELED. The wheels are stopped on every exit.
+stopped answering or reports a fault, or the arm did not follow a step sent twice: an arm step that
+no joint starts on within ``arm_stall_time``, or that does not arrive, is sent once more), CANCELED.
+The wheels are stopped on every exit.
 
 The robot is reached through :class:`M3Hardware`, so the same mission runs on the real drivers'
 topics or on anything else that provides them.
@@ -122,6 +124,8 @@ class MissionConfig:
     arm_speed: float = 0.8  # rad/s for planned moves
     joint_tolerance: float = 0.04  # rad
     arm_timeout: float = 6.0  # s beyond a move's planned duration
+    arm_stall_time: float = 1.5  # s after a command within which some joint must start moving
+    arm_attempts: int = 2  # an arm step is sent this often before the mission fails
     grasp_margin: float = 0.08  # rad: the gripper must stop this far from fully closed
     navigation: GoToPoseParams = field(default_factory=GoToPoseParams)
     navigation_timeout: float = 90.0  # s per drive
@@ -445,41 +449,76 @@ class PlaceTileMission:
             self.hw.sleep(cfg.control_period)
 
     def _move_arm(self, goals: Mapping[str, float], what: str) -> None:
+        """Move the arm and wait until it is there. A step the arm does not follow is sent once
+        more (a goal can be lost on its way to the servos) before the mission fails."""
+        attempts = self.config.arm_attempts
+        for attempt in range(1, attempts + 1):
+            problem = self._arm_step(goals)
+            if problem is None:
+                return
+            if attempt < attempts:
+                self.log(f"the arm did not reach {what} ({problem}); sending the goal again")
+        raise MissionFailedError(
+            Outcome.FAILED_HARDWARE,
+            f"the arm did not reach {what}: {problem} (goal sent {attempts} times)",
+        )
+
+    def _arm_step(self, goals: Mapping[str, float]) -> str | None:
+        """Send the goals once and wait; None when reached, else what went wrong."""
         cfg = self.config
         joints = self._joints()
-        distance = max(abs(goals[n] - joints[n][0]) for n in goals)
-        duration = max(0.3, distance / cfg.arm_speed)
+        initial = {n: abs(goals[n] - joints[n][0]) for n in goals}
+        duration = max(0.3, max(initial.values()) / cfg.arm_speed)
+        start = self.hw.now()
         self.hw.move_joints(goals, duration)
-        deadline = self.hw.now() + duration + cfg.arm_timeout
         gripper_only = set(goals) == {cfg.gripper_joint}
+        moved = False
         while True:
             self._check()
             joints = self._joints()
             errors = {n: abs(goals[n] - joints[n][0]) for n in goals}
             if all(e <= cfg.joint_tolerance for e in errors.values()):
-                return
-            planned_end = deadline - cfg.arm_timeout
+                return None
+            now = self.hw.now()
+            # a joint that came half a tolerance closer is following the goal
+            moved = moved or any(initial[n] - errors[n] > cfg.joint_tolerance / 2 for n in goals)
             stopped = abs(joints[cfg.gripper_joint][1]) < 1e-3
-            if gripper_only and self.hw.now() > planned_end + 0.3 and stopped:
-                return  # the gripper stopped (holding something, or it cannot open further)
-            if self.hw.now() > deadline:
-                worst = max(errors, key=errors.get)
-                raise MissionFailedError(
-                    Outcome.FAILED_HARDWARE,
-                    f"the arm did not reach {what}: {worst} is {errors[worst]:.2f} rad off after "
-                    f"{duration + cfg.arm_timeout:.1f} s",
-                )
+            if gripper_only and moved and stopped and now > start + duration + 0.3:
+                return None  # the gripper stopped (holding something, or it cannot open further)
+            worst = max(errors, key=errors.get)
+            off = f"{worst} is {errors[worst]:.2f} rad off after {now - start:.1f} s"
+            if not moved and now - start > cfg.arm_stall_time:
+                return f"no joint moved towards the goal; {off}"
+            if now - start > duration + cfg.arm_timeout:
+                return off
             self.hw.sleep(cfg.control_period)
 
     def _close_gripper(self) -> float:
-        """Close the gripper until it reaches the closed angle or stops on the tile; its angle."""
+        """Close the gripper until it reaches the closed angle or stops on the tile; its angle. A
+        close the gripper does not start on is sent once more before the mission fails."""
+        attempts = self.config.arm_attempts
+        for attempt in range(1, attempts + 1):
+            position = self._close_gripper_once()
+            if position is not None:
+                return position
+            if attempt < attempts:
+                self.log("the gripper did not start closing; sending the goal again")
+        raise MissionFailedError(
+            Outcome.FAILED_HARDWARE,
+            f"the gripper did not start closing within {self.config.arm_stall_time:g} s "
+            f"(goal sent {attempts} times)",
+        )
+
+    def _close_gripper_once(self) -> float | None:
+        """One close command: the angle where the gripper ends up, None when it never moved."""
         cfg = self.config
         name = cfg.gripper_joint
         start = self._joints()[name][0]
         duration = max(0.3, abs(start - cfg.gripper_closed) / cfg.arm_speed)
         self.hw.move_joints({name: cfg.gripper_closed}, duration)
-        deadline = self.hw.now() + duration + cfg.arm_timeout
-        settle_from = self.hw.now() + 0.3
+        sent_at = self.hw.now()
+        deadline = sent_at + duration + cfg.arm_timeout
+        settle_from = sent_at + 0.3
         still_since: float | None = None
         last = start
         while True:
@@ -488,8 +527,11 @@ class PlaceTileMission:
             now = self.hw.now()
             if abs(position - cfg.gripper_closed) <= cfg.joint_tolerance:
                 return position
-            if now > settle_from and abs(velocity) < 1e-3 and abs(position - last) < 0.005:
-                still_since = still_since or now
+            moved = abs(position - start) > cfg.joint_tolerance / 2
+            if not moved and now - sent_at > cfg.arm_stall_time:
+                return None
+            if moved and now > settle_from and abs(velocity) < 1e-3 and abs(position - last) < 0.005:
+                still_since = now if still_since is None else still_since
                 if now - still_since > 0.25:
                     return position  # stopped on something
             else:

@@ -130,6 +130,87 @@ def test_an_unplugged_bus_is_reconnected(rig) -> None:
     wait_until(lambda: len(positions(driver)) == 6, what="readings after the reconnect")
 
 
+def lossy_rig(tmp_path: Path, *emulator_args: str):  # type: ignore[no-untyped-def]
+    emulator = Emulator("dynamixel", tmp_path / "arm", *emulator_args)
+    events = Events()
+    driver = ArmDriver(ArmConfig(port=str(tmp_path / "arm"), joints=joints()), on_event=events)
+    return emulator, driver, events
+
+
+def reach(driver: ArmDriver, goals: dict[str, float], timeout: float = 5.0) -> None:
+    driver.set_goals(goals, duration=0.3)
+    wait_until(lambda: all(abs(positions(driver).get(n, 9.0) - v) < 0.02 for n, v in goals.items()),
+               timeout, f"the goal {goals}")
+
+
+def test_goal_writes_the_servos_miss_are_sent_again(tmp_path: Path) -> None:
+    emulator, driver, events = lossy_rig(tmp_path, "--drop-goals", "0.3", "--seed", "5")
+    driver.start()
+    try:
+        assert driver.wait_connected(5.0), events.items
+        for target in (0.8, -0.6, 0.3):
+            reach(driver, dict.fromkeys(NAMES, target))
+        missed = [text for _, text in emulator.lines if text.startswith("missed ") and text.endswith(" goal")]
+        assert missed, "the emulator dropped no goal write: the test proves nothing"
+        assert driver.health.counter("goals_resent") >= 1
+        events.wait_for("missed its goal")
+        assert driver.health.level != Level.ERROR
+    finally:
+        driver.stop()
+        emulator.close()
+
+
+def test_a_joint_whose_configuration_was_lost_at_connect_is_configured_later(tmp_path: Path) -> None:
+    emulator, driver, events = lossy_rig(tmp_path, "--seed", "2")
+    driver.start()
+    try:
+        # a noisy bus from the first joint's torque on: some later joint loses a configuration step
+        emulator.wait_for("torque 1 1", 5.0)
+        emulator.send("packet-loss 0.6")
+        assert driver.wait_connected(5.0), events.items
+        emulator.send("packet-loss 0")
+        emulator.wait_for("packet-loss 0", 2.0)
+        assert driver.health.counter("configure_failures") >= 1, "every configuration went through"
+        events.wait_for("configured, torque on")
+        wait_until(lambda: all(f"torque {i} 1" in [t for _, t in emulator.lines] for i in range(1, 7)),
+                   what="torque on every servo")
+        reach(driver, dict.fromkeys(NAMES, 0.5))
+    finally:
+        driver.stop()
+        emulator.close()
+
+
+def test_a_servo_silent_at_connect_is_configured_when_it_answers(tmp_path: Path) -> None:
+    emulator, driver, events = lossy_rig(tmp_path)
+    emulator.send("mute 3 on")
+    emulator.wait_for("mute 3 on")
+    driver.start()
+    try:
+        events.wait_for("5 of 6 joints answer")
+        emulator.send("mute 3 off")
+        events.wait_for("joint elbow (id 3) configured, torque on")
+        emulator.wait_for("torque 3 1", 2.0)
+        reach(driver, {"elbow": -1.0})
+    finally:
+        driver.stop()
+        emulator.close()
+
+
+def test_a_lossy_bus_still_brings_every_joint_to_its_goals(tmp_path: Path) -> None:
+    emulator, driver, events = lossy_rig(tmp_path, "--packet-loss", "0.15", "--seed", "3")
+    driver.start()
+    try:
+        assert driver.wait_connected(5.0), events.items
+        for target in (-0.7, 0.9):
+            reach(driver, dict.fromkeys(NAMES, target))
+        assert not [m for _, m in events.items if "stopped answering" in m]  # a lost read is no silence
+        assert driver.health.counter("failed_attempts") >= 1
+        assert driver.health.level != Level.ERROR
+    finally:
+        driver.stop()
+        emulator.close()
+
+
 def test_no_servo_answering_is_named(tmp_path: Path) -> None:
     emulator = Emulator("dynamixel", tmp_path / "arm", "--ids", "11,12")
     events = Events()
