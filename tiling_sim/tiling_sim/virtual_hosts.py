@@ -21,10 +21,10 @@ Design choices, and why:
   frees a namespace, with its interfaces, qdiscs and nftables tables, as soon as no process is left
   in it. When the owner exits in any way, even by SIGKILL, the pipe closes, the keepers exit, and
   everything goes away once the processes started inside have exited (a process runner that
-  gives them PR_SET_PDEATHSIG does that). There is nothing to clean up after a killed run, and
-  parallel runs can never collide: unnamed namespaces have no names to collide on, and every
-  run's interfaces (`eth0`, `air`, `p1`...) live inside its own namespaces. (Hence no
-  `remove_leftovers`: there can be none.) `ip netns list` never shows these hosts; look at one
+  gives them PR_SET_PDEATHSIG, as tiling_sim.process_group does, sees to that). There is nothing
+  to clean up after a killed run, and parallel runs can never collide: unnamed namespaces have no
+  names to collide on, and every run's interfaces (`eth0`, `air`, `p1`...) live inside its own
+  namespaces. (Hence no `remove_leftovers`: there can be none.) `ip netns list` never shows these hosts; look at one
   with `nsenter --net=/proc/PID/ns/net --uts=/proc/PID/ns/uts` (PID: `VirtualHost.keeper_pid`).
 - **The bridge lives in a hub namespace of its own, not in the root namespace.** The machine's own
   firewall (Docker sets FORWARD to DROP and loads br_netfilter), routes and interfaces cannot touch
@@ -171,7 +171,7 @@ class LinkShape:
 class VirtualHost:
     name: str
     address: str  # its IPv4 address on the bridge
-    port: str  # its veth end on the bridge, in the hub namespace
+    port: str  # its link's end on the bridge, in the hub namespace
     link: LinkShape
     keeper_pid: int  # the process that holds its namespaces
 
@@ -362,10 +362,14 @@ def _delay_line(delay_ms: float, host_tap: int, port_tap: int) -> None:
             return
         arrived = time.monotonic()
         for device in readable:
-            if device != owner:
+            if device == owner:
+                continue
+            try:
                 frame = os.read(device, 65536)
-                if len(due) < _DELAY_LINE_FRAMES:
-                    heapq.heappush(due, (arrived + delay, next(sequence), other[device], frame))
+            except OSError:
+                continue  # the device went down between select and read
+            if len(due) < _DELAY_LINE_FRAMES:
+                heapq.heappush(due, (arrived + delay, next(sequence), other[device], frame))
         while due and due[0][0] <= time.monotonic():
             _, _, device, frame = heapq.heappop(due)
             try:
@@ -626,7 +630,7 @@ class VirtualHosts:
 
 
 def keeper_processes(run_id: str | None = None) -> list[int]:
-    """Pids of keeper processes on this machine (of one run, or of all): empty after a clean exit."""
+    """Pids of the keepers and delay lines on this machine (of one run, or of all): none once a run is over."""
     label = "tiling-virtual-hosts:" + (f"{run_id}:" if run_id is not None else "")
     found = []
     for entry in os.listdir("/proc"):
