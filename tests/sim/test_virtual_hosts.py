@@ -39,7 +39,7 @@ def _unavailable() -> str:
     return ""
 
 
-pytestmark = pytest.mark.skipif(bool(_unavailable()), reason=_unavailable() or "available")
+needs_virtual_hosts = pytest.mark.skipif(bool(_unavailable()), reason=_unavailable() or "available")
 
 
 @pytest.fixture(scope="module")
@@ -132,6 +132,7 @@ def resolve_neighbour(sender: socket.socket, receiver: socket.socket, address: s
 # --- the network ------------------------------------------------------------------------------
 
 
+@needs_virtual_hosts
 def test_every_host_reaches_every_other_and_has_its_own_name(hosts: VirtualHosts) -> None:
     names = ["robot", "base", "slow", "far"]
     for source in names:
@@ -144,6 +145,7 @@ def test_every_host_reaches_every_other_and_has_its_own_name(hosts: VirtualHosts
     assert {host.address for host in hosts.hosts.values()} == {f"10.213.0.{k}" for k in range(1, 7)}
 
 
+@needs_virtual_hosts
 def test_multicast_reaches_every_other_host(hosts: VirtualHosts) -> None:
     group = "239.255.0.1"  # the one DDS discovery uses
     receivers = {name: udp_socket(hosts, name, PORT + 1, group) for name in ("base", "slow", "lossy5")}
@@ -165,6 +167,7 @@ def test_multicast_reaches_every_other_host(hosts: VirtualHosts) -> None:
         ("lossy5", "lossy15", 1 - 0.95 * 0.85),  # two lossy links, as station -> access point -> station
     ],
 )
+@needs_virtual_hosts
 def test_random_loss_drops_about_the_share_asked_and_counts_it(
     hosts: VirtualHosts, source: str, target: str, expected_loss: float
 ) -> None:
@@ -207,6 +210,7 @@ def throughput_mbit(arrivals: list[tuple[float, int]]) -> float:
     return sum(size for _, size in arrivals[1:]) * 8 / elapsed / 1e6
 
 
+@needs_virtual_hosts
 def test_rate_limit_holds_both_directions_near_5_mbit(hosts: VirtualHosts) -> None:
     unshaped_mbit = sum(size for _, size in flood(hosts, "robot", "base", 0.5)) * 8 / 0.5 / 1e6
     sending = throughput_mbit(flood(hosts, "slow", "base", 1.5))
@@ -220,6 +224,7 @@ def test_rate_limit_holds_both_directions_near_5_mbit(hosts: VirtualHosts) -> No
     assert unshaped_mbit > 3 * 5, f"an unshaped link carries {unshaped_mbit:.1f} Mbit/s: the limit is the shaping"
 
 
+@needs_virtual_hosts
 def test_delay_line_delays_every_packet(hosts: VirtualHosts) -> None:
     """30 ms each way on "far"'s link: a round trip robot -> far -> robot takes 60 ms and a little."""
     pinger = udp_socket(hosts, "robot")
@@ -256,6 +261,7 @@ def test_delay_line_delays_every_packet(hosts: VirtualHosts) -> None:
     assert median < 70.0, "the delay line adds little of its own"
 
 
+@needs_virtual_hosts
 def test_outage_stops_both_directions_and_restores(hosts: VirtualHosts) -> None:
     before = hosts.counters("robot")
     hosts.set_link("robot", False)
@@ -308,6 +314,7 @@ def shared_memory_files(pid: int) -> set[str]:
         return {line.split()[-1] for line in maps if "/dev/shm/fastrtps" in line}
 
 
+@needs_virtual_hosts
 @pytest.mark.ros
 def test_ros_messages_cross_the_link_not_shared_memory(hosts: VirtualHosts) -> None:
     peer = [sys.executable, str(HERE / "virtual_hosts_peer.py")]
@@ -396,6 +403,7 @@ def wait_until_gone(keepers: list[int], namespaces: list[int], timeout: float = 
         time.sleep(0.1)
 
 
+@needs_virtual_hosts
 def test_close_removes_everything_and_can_be_repeated() -> None:
     run_id = f"close{os.getpid()}"
     hosts = VirtualHosts(run_id)
@@ -412,6 +420,7 @@ def test_close_removes_everything_and_can_be_repeated() -> None:
     assert root_namespace_mentions(run_id) == []
 
 
+@needs_virtual_hosts
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL], ids=["SIGINT", "SIGTERM", "SIGKILL"])
 def test_nothing_outlives_an_owner_that_is_signalled(sig: signal.Signals) -> None:
     run_id = f"owner{os.getpid()}{sig.name}"
@@ -432,7 +441,7 @@ def test_without_root_one_clear_line(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(VirtualHostsUnavailableError) as raised:
         VirtualHosts()
     assert str(raised.value) == "virtual hosts need root (network namespaces, bridges, nftables): run as root"
-    monkeypatch.undo()
+    monkeypatch.setattr(os, "geteuid", lambda: 0)
     monkeypatch.setenv("PATH", "/nonexistent")
     with pytest.raises(VirtualHostsUnavailableError, match=r"^virtual hosts need the 'ip' command: .*iproute2"):
         VirtualHosts()
