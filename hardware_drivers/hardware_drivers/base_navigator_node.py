@@ -12,6 +12,7 @@ base, they would both command ``cmd_vel``.)
 
 from __future__ import annotations
 
+import threading
 import time
 
 from geometry_msgs.msg import Twist
@@ -52,6 +53,7 @@ class BaseNavigatorNode(Node):
                                      callback_group=group)
         self.cmd_vel = self.create_publisher(Twist, "cmd_vel", 10)
         self.slot = GoalSlot()
+        self.stopping = threading.Event()  # the node is stopping: a drive under way ends, wheels stopped
         self.server = ActionServer(self, NavigateTo, "navigate_to", execute_callback=self.execute,
                                    goal_callback=self.on_goal, cancel_callback=self.on_cancel,
                                    callback_group=group)
@@ -110,6 +112,8 @@ class BaseNavigatorNode(Node):
         while True:
             if goal_handle.is_cancel_requested:
                 return False, "canceled"
+            if self.stopping.is_set():
+                return False, "the navigator is shutting down"
             pose = self.tracker.map_pose()
             if pose is None:
                 return False, "no pose of the base (needs odom and at least one overhead_pose)"
@@ -137,6 +141,7 @@ class BaseNavigatorNode(Node):
 
 def main() -> int:
     return run_node(BaseNavigatorNode, executor=lambda: MultiThreadedExecutor(num_threads=3),
+                    on_stop=lambda node: node.stopping.set(),
                     on_shutdown=lambda node: node.cmd_vel.publish(Twist()) if node.context.ok() else None)
 
 

@@ -104,6 +104,7 @@ class M3RobotNode(Node):
         self._wheel_drop = False
         self._device_status: dict[str, tuple[int, str, dict[str, str]]] = {}
         self.slot = GoalSlot()
+        self.stopping = threading.Event()  # the node is stopping: a mission under way ends as canceled
         self.cmd_vel = self.create_publisher(Twist, "cmd_vel", 10)
         self.trajectory = self.create_publisher(JointTrajectory, "joint_trajectory", 10)
         self.create_subscription(LaserScan, "scan", self.on_scan, qos_profile_sensor_data,
@@ -387,7 +388,7 @@ class _GoalHardware:
         self._goal_handle = goal_handle
 
     def canceled(self) -> bool:
-        return bool(self._goal_handle.is_cancel_requested)
+        return bool(self._goal_handle.is_cancel_requested) or self._node.stopping.is_set()
 
     def __getattr__(self, name: str):
         return getattr(self._node, name)
@@ -395,6 +396,7 @@ class _GoalHardware:
 
 def main() -> int:
     return run_node(M3RobotNode, executor=lambda: MultiThreadedExecutor(num_threads=4),
+                    on_stop=lambda node: node.stopping.set(),
                     on_shutdown=lambda node: node.stop() if node.context.ok() else None)
 
 

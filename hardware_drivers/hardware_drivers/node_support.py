@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor
@@ -18,6 +18,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from hardware_drivers.device_health import HealthReport, Level
 from tiling_assembly import spinning
+
+NodeT = TypeVar("NodeT", bound=Node)
 
 DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 # REP 2003: sensor drivers publish reliable, so best-effort and reliable subscribers both connect
@@ -107,9 +109,10 @@ class DiagnosticsReporter:
         self.publisher.publish(array)
 
 
-def run_node(make_node: Callable[[], Node], executor: Callable[[], Executor] = SingleThreadedExecutor,
-             on_shutdown: Callable[[Node], None] | None = None) -> int:
+def run_node(make_node: Callable[[], NodeT], executor: Callable[[], Executor] = SingleThreadedExecutor,
+             on_stop: Callable[[NodeT], None] | None = None,
+             on_shutdown: Callable[[NodeT], None] | None = None) -> int:
     """A driver node's whole process (`tiling_assembly.spinning.run_node`): a ParameterError is one
     line on stderr and exit code 2. Returns the exit code."""
     return spinning.run_node(make_node, (ParameterError,), args=sys.argv, executor=executor,
-                             on_shutdown=on_shutdown)
+                             on_stop=on_stop, on_shutdown=on_shutdown)

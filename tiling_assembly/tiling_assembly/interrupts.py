@@ -20,6 +20,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
+from typing import Any
 
 signalled = threading.Event()  # Ctrl-C or SIGTERM arrived
 
@@ -37,25 +38,38 @@ def raise_keyboard_interrupt_on_signals() -> None:
 
 
 @contextmanager
+def recorded_signals() -> Iterator[list[int]]:
+    """Within the block, SIGINT and SIGTERM are only recorded, in the list it yields; the handlers
+    are restored at its end. Only the main thread receives Python's signals, so in another thread
+    this changes nothing; neither does it for a handler not set from Python."""
+    arrived: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield arrived
+        return
+    previous: dict[int, Any] = {}
+    try:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(signum) is not None:
+                previous[signum] = signal.signal(signum, lambda s, frame: arrived.append(s))
+        yield arrived
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+@contextmanager
 def postponed_signals() -> Iterator[None]:
     """SIGINT and SIGTERM arriving within the block take effect at its end, as if sent then.
 
     For work that a KeyboardInterrupt must not cut in two. Open3D's import, interrupted, leaves
     tensors allocated that Open3D's own check at program end counts as leaks: it then calls
-    `exit(1)` after Python has exited 0. Only the main thread receives Python's signals, so in
-    another thread this changes nothing; neither does it for a handler not set from Python.
+    `exit(1)` after Python has exited 0.
     """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
     arrived: list[int] = []
-    handled = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) is not None]
-    previous = {s: signal.signal(s, lambda signum, frame: arrived.append(signum)) for s in handled}
     try:
-        yield
+        with recorded_signals() as arrived:
+            yield
     finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
         if arrived:
             signal.raise_signal(arrived[0])  # now handled as it would have been
 

@@ -28,7 +28,12 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from tiling_assembly.interrupts import raise_keyboard_interrupt_on_signals, signalled
+from tiling_assembly.interrupts import (
+    postponed_signals,
+    raise_keyboard_interrupt_on_signals,
+    recorded_signals,
+    signalled,
+)
 
 NodeT = TypeVar("NodeT", bound=Node)
 
@@ -43,61 +48,68 @@ def init_ros(args: list[str] | None = None) -> None:
 
 def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exception], ...] = (), *,
              args: list[str] | None = None, executor: Callable[[], Executor] = SingleThreadedExecutor,
-             on_shutdown: Callable[[NodeT], None] | None = None, error_prefix: str = "error") -> int:
+             on_stop: Callable[[NodeT], None] | None = None, on_shutdown: Callable[[NodeT], None] | None = None,
+             error_prefix: str = "error") -> int:
     """Run one node for a whole process; returns the exit code.
 
     A start-up error of the types given prints one line `<error_prefix>: <error>` on stderr and gives
-    `EXIT_BAD_INPUT`. Ctrl-C or SIGTERM stops the node (exit code 0), also during start-up. The node's
-    `on_shutdown` runs after its callbacks have finished and before it is destroyed.
+    `EXIT_BAD_INPUT`. Ctrl-C or SIGTERM stops the node (exit code 0), also during start-up: a signal
+    while `make_node` runs takes effect once the node is built, so that a node with threads or
+    devices already started is stopped like any other. Stopping: `on_stop` asks long callbacks to
+    return (a navigation, a mission), the callbacks still running are waited for, `on_shutdown`
+    runs, the node is destroyed. A further signal while it stops is ignored (it could only cut the
+    stop short and leave threads inside rclpy at exit, which aborts the process).
     """
+    node: NodeT | None = None
+    spinner: Spinner | None = None
     try:
         init_ros(args)
         try:
-            node = make_node()
+            with postponed_signals():
+                node = make_node()
         except Exception as error:
             if signalled.is_set():
                 # the signal broke what it interrupted on its way out: an import of a C extension
-                # (Open3D's) turns the KeyboardInterrupt into "ImportError: initialization failed"
+                # turns the KeyboardInterrupt into another error ("ImportError: initialization failed")
                 return 0
             if not isinstance(error, startup_errors):
                 raise
             print(f"{error_prefix}: {error}", file=sys.stderr)
             return EXIT_BAD_INPUT
-        try:
-            spin_until_shutdown(node, executor())
-        finally:
-            if on_shutdown is not None:
-                try:
-                    on_shutdown(node)
-                except Exception as error:
-                    print(f"{node.get_name()}: while shutting down: {error}", file=sys.stderr)
-            node.destroy_node()
+        spinner = Spinner(node, executor())
+        spinner.start()
+        spinner.wait()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        rclpy.try_shutdown()
+        with recorded_signals():
+            if node is not None:
+                stop_node(node, spinner, on_stop, on_shutdown)
+            rclpy.try_shutdown()
+    if spinner is not None and spinner.failure is not None:
+        raise spinner.failure  # a callback's error: a bug, with its traceback
     return 0
 
 
-def spin_until_shutdown(node: Node, executor: Executor | None = None) -> None:
-    """Spin `node` on a thread of its own until Ctrl-C or the context's shutdown, then stop the
-    executor and wait for its running callbacks (`Spinner`).
+def stop_node(node: NodeT, spinner: Spinner | None, on_stop: Callable[[NodeT], None] | None,
+              on_shutdown: Callable[[NodeT], None] | None) -> None:
+    """Stop a node's work and its executor, then destroy it (the context is still up)."""
+    if on_stop is not None:
+        call_reporting_errors(on_stop, node, "while stopping")
+    if spinner is not None and not spinner.stop():
+        print(f"{node.get_name()}: a callback was still running 5 s after the stop; exiting anyway",
+              file=sys.stderr)
+    if on_shutdown is not None:
+        call_reporting_errors(on_shutdown, node, "while shutting down")
+    node.destroy_node()
 
-    An error raised by a callback stops the spinning and is raised here, unless the context had
-    already shut down (then it is part of stopping). The caller destroys the node afterwards.
-    """
-    spinner = Spinner(node, executor)
+
+def call_reporting_errors(hook: Callable[[NodeT], None], node: NodeT, when: str) -> None:
+    """A stop hook's error is one line: the stop goes on."""
     try:
-        spinner.start()  # inside the try: a signal during the start still stops the loop
-        spinner.wait()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        if not spinner.stop():
-            print(f"{node.get_name()}: a callback was still running 5 s after the stop; exiting anyway",
-                  file=sys.stderr)
-    if spinner.failure is not None:
-        raise spinner.failure
+        hook(node)
+    except Exception as error:
+        print(f"{node.get_name()}: {when}: {error}", file=sys.stderr)
 
 
 class Spinner:
