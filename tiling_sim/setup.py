@@ -19,6 +19,8 @@ setup(
     entry_points={
         "console_scripts": [
             "sim_world = tiling_sim.executables:sim_world",
+            "sim_robot = tiling_sim.executables:sim_robot",
+            "sim_vi = tiling_sim.executables:sim_vi",
             "experiment = tiling_sim.executables:experiment",
             "replay_bag = tiling_sim.replay_bag:main",
             "vi_accuracy = tiling_sim.vi_accuracy:main",

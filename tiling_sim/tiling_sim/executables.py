@@ -12,3 +12,11 @@ def experiment() -> int:
 
 def sim_world() -> int:
     return run_executable("tiling_sim.world_node")
+
+
+def sim_robot() -> int:
+    return run_executable("tiling_sim.robot_body_node")
+
+
+def sim_vi() -> int:
+    return run_executable("tiling_sim.vi_body_node")

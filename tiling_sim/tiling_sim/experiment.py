@@ -37,7 +37,7 @@ from tiling_sim.process_group import ProcessGroup
 from tiling_sim.ros_domain import claim_domain_id, isolate
 from tiling_sim.trial_record import DetectionStats, TrialRecord, detection_stats
 
-HEAVY_NODES = {"sim_world", "vi_node", "vi_explorer"}  # ray casting, point clouds
+HEAVY_NODES = {"vi_body", "vi_node", "vi_explorer"}  # ray casting, point clouds (the world is light: the clock)
 
 
 @dataclass
@@ -116,11 +116,13 @@ class Experiment:
         self.wall_limit = config.wall_limit or self.sim_limit / config.real_time_factor + 60.0
         self.executables = {
             "sim_world": executable("tiling_sim", "sim_world"),
+            "sim_robot": executable("tiling_sim", "sim_robot"),
             "planner_node": executable("planner_node", "planner_node"),
             "auction_node": executable("auction_node", "auction_node"),
             "assembly_node": executable("assembly_node", "assembly_node"),
         }
         if config.inspection:
+            self.executables["sim_vi"] = executable("tiling_sim", "sim_vi")
             self.executables["vi_node"] = executable("vi_node", "vi_node")
             self.executables["vi_explorer"] = executable("vi_node", "vi_explorer")
 
@@ -141,19 +143,25 @@ class Experiment:
         return ["-p", "robot_start_xy:=[0.0]"]
 
     def node_commands(self, setup: TrialSetup) -> dict[str, list[str]]:
+        """The command line of every process of a trial, by process name (the name of its log).
+
+        The simulated testbed is three kinds of process, as the real one would be: the world
+        (`sim_world`) and, on board each robot, its body (`sim_robot` in /robotK as `robotK_body`,
+        `sim_vi` in /vi as `vi_body`). All read config/tiling_sim.yaml; each takes its own values.
+        """
         c, exe = self.config, self.executables
         structure = f"structure_file:={c.structure_file}"
         robots = f"robot_names:=[{', '.join(c.robot_names)}]"
         sim_time = ["-p", "use_sim_time:=true"]
+        testbed = [*self.params("tiling_sim"), "-p", structure, "-p", robots, "-p", f"seed:={setup.seed}",
+                   *self.start_positions_override()]
         window = (0.15 * self.estimated_makespan, 0.75 * self.estimated_makespan)
         commands = {
-            "sim_world": [exe["sim_world"], "--ros-args", *self.params("vi_node"), *self.params("tiling_sim"),
-                          "-p", structure,
-                          "-p", robots, "-p", f"seed:={setup.seed}", "-p", f"removals:={setup.removals}",
+            "sim_world": [exe["sim_world"], "--ros-args", *testbed,
+                          "-p", f"removals:={setup.removals}",
                           "-p", f"removal_window_start:={window[0]:.1f}", "-p", f"removal_window_end:={window[1]:.1f}",
                           "-p", f"real_time_factor:={c.real_time_factor}", "-p", "wait_for_start:=true",
-                          "-p", f"drop_probability:={c.drop_probability if setup.faults else 0.0}",
-                          *self.start_positions_override()],
+                          "-p", f"drop_probability:={c.drop_probability if setup.faults else 0.0}"],
             "planner_node": [exe["planner_node"], "--ros-args", *self.params("planner_node"), "-p", structure,
                              "-p", robots, *sim_time],
             "auction_node": [
@@ -162,21 +170,26 @@ class Experiment:
             ],
         }
         if c.inspection:
+            # the camera's mount and intrinsics are vi_node's parameters: the body's Kinect shares them
+            commands["vi_body"] = [exe["sim_vi"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
+                                   *testbed, *sim_time]
             commands["vi_node"] = [exe["vi_node"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
                                    "-p", structure, *sim_time]
             commands["vi_explorer"] = [exe["vi_explorer"], "--ros-args", "-r", "__ns:=/vi",
                                        *self.params("vi_node"), *self.params("vi_explorer"), "-p", structure,
                                        *sim_time]
         for robot in c.robot_names:
+            commands[f"{robot}_body"] = [exe["sim_robot"], "--ros-args", "-r", f"__ns:=/{robot}", *testbed,
+                                         *sim_time]
             extra = ["-p", "bid_in_auctions:=false"] if robot == c.silent_robot else []
             commands[robot] = [exe["assembly_node"], "--ros-args", "-r", f"__ns:=/{robot}",
                                *self.params("assembly_node"), *sim_time, *extra]
         return commands
 
     def expected_nodes(self) -> list[str]:
-        vi = ["/vi/vi_node", "/vi/vi_explorer"] if self.config.inspection else []
-        return ["/sim_world", "/planner_node", "/auction_node", *vi,
-                *[f"/{r}/assembly_node" for r in self.config.robot_names]]
+        vi = ["/vi/sim_vi", "/vi/vi_node", "/vi/vi_explorer"] if self.config.inspection else []
+        robots = [f"/{r}/{node}" for r in self.config.robot_names for node in ("sim_robot", "assembly_node")]
+        return ["/sim_world", "/planner_node", "/auction_node", *vi, *robots]
 
     def run_trial(self, setup: TrialSetup, progress: str) -> TrialRecord:
         record = TrialRecord(trial=setup.trial, seed=setup.seed, removals_planned=setup.removals,

@@ -1,0 +1,181 @@
+"""The split simulator as real ROS 2 processes: the world, an assembly robot's body and the VI
+robot's body, each reading the whole of config/tiling_sim.yaml (and vi_node.yaml) as the experiment
+gives it, and what a team sees of them: placements with the old phases, durations, results and
+events; the robots where they truly stand in the world's snapshot; Kinect frames stamped with the
+time of the world they show, beside the overhead poses of that time."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+import rclpy
+from conftest import REPO, STRUCTURES, ros2_command, stop_node_process
+from geometry_msgs.msg import PoseStamped
+from rclpy.action import ActionClient
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import String
+
+from tiling_assembly.polygons import convex_hull_2d
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.srv import SimSnapshot
+from tiling_sim.robot_motion import placement_phases
+from tiling_sim.sim_interface import EVENTS_QOS, stamp_ns
+from tiling_sim.sim_settings import RobotBodySettings
+
+pytestmark = pytest.mark.ros
+
+PAPER_FILE = STRUCTURES / "paper_14.yaml"
+PAPER = load_structure(PAPER_FILE)
+START = (-0.6, -0.9)  # robot1's start in config/tiling_sim.yaml
+PLACEMENT_EVENTS = {"place_started", "dropped", "placed", "already_present", "refused", "complete"}
+TICK = 0.02 * 20.0  # simulated s between two /clock messages at the file's clock_step and 20x
+
+
+def _command(executable: str, namespace: str | None, *extra: str) -> list[str]:
+    return [ros2_command(), "run", "tiling_sim", executable, "--ros-args",
+            *(["-r", f"__ns:={namespace}"] if namespace else []),
+            "--params-file", str(REPO / "config" / "vi_node.yaml"),
+            "--params-file", str(REPO / "config" / "tiling_sim.yaml"),
+            "-p", f"structure_file:={PAPER_FILE}", *extra]
+
+
+class Simulator:
+    """sim_world, /robot1's sim_robot and /vi's sim_vi, and a node of the test that watches them."""
+
+    def __init__(self) -> None:
+        body = ("-p", "use_sim_time:=true")
+        self.processes = {
+            "sim_world": self._start(_command("sim_world", None, "-p", "removals:=0")),
+            "sim_robot": self._start(_command("sim_robot", "/robot1", *body)),
+            "sim_vi": self._start(_command("sim_vi", "/vi", *body)),
+        }
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("sim_processes_test", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.events: list[dict[str, Any]] = []
+        self.clouds: list[PointCloud2] = []
+        self.vi_poses: list[PoseStamped] = []
+        self.node.create_subscription(String, "/sim/events", lambda m: self.events.append(json.loads(m.data)),
+                                      EVENTS_QOS)
+        self.node.create_subscription(PointCloud2, "/vi/camera/depth/points", self.clouds.append,
+                                      QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+        self.node.create_subscription(PoseStamped, "/vi/overhead_pose", self.vi_poses.append, 50)
+        self.place = ActionClient(self.node, PlaceTile, "/robot1/place_tile")
+        self.snapshot = self.node.create_client(SimSnapshot, "/sim/snapshot")
+
+    @staticmethod
+    def _start(command: list[str]) -> subprocess.Popen[str]:
+        return subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+            if predicate():
+                return True
+        return False
+
+    def call(self, future: Any, timeout: float = 30.0) -> Any:
+        assert self.spin_until(future.done, timeout), "no answer in time"
+        return future.result()
+
+    def place_tile(self, tile_id: int, on_feedback: Callable[[Any], None] = lambda _f: None, like: int = 0) -> Any:
+        """Place `tile_id` (where tile `like` goes, if given); the result."""
+        tile = PAPER.tiles[like or tile_id]
+        goal = PlaceTile.Goal(tile_id=tile_id, tile_type=tile.type_name)
+        goal.pose.header.frame_id = "map"
+        goal.pose.pose.position.x, goal.pose.pose.position.y = float(tile.position[0]), float(tile.position[1])
+        goal.cache.x, goal.cache.y = PAPER.caches[tile.type_name]
+        handle = self.call(self.place.send_goal_async(goal, feedback_callback=on_feedback))
+        assert handle.accepted
+        return self.call(handle.get_result_async(), timeout=60.0).result
+
+    def close(self) -> dict[str, str]:
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+        return {name: stop_node_process(process) for name, process in self.processes.items()}
+
+
+@pytest.fixture(scope="module")
+def sim() -> Iterator[Simulator]:
+    bed = Simulator()
+    try:
+        assert bed.spin_until(bed.place.server_is_ready, 60.0), "sim_robot never served place_tile"
+        assert bed.spin_until(bed.snapshot.service_is_ready, 10.0), "sim_world never served /sim/snapshot"
+        yield bed
+    finally:
+        outputs = bed.close()  # every process stops cleanly at Ctrl-C
+        assert not any("ERROR" in output for output in outputs.values()), outputs
+
+
+def test_a_placement_has_the_old_phases_duration_result_and_events(sim: Simulator) -> None:
+    seen: list[tuple[int, list[Any]]] = []
+
+    def on_feedback(feedback: Any) -> None:
+        phase = feedback.feedback.phase
+        robots = None
+        if phase == PlaceTile.Feedback.DRIVING_TO_STRUCTURE:  # it just picked the tile at its cache
+            robots = sim.snapshot.call_async(SimSnapshot.Request())
+        seen.append((phase, [robots]))
+
+    result = sim.place_tile(1, on_feedback)
+    assert result.error_code == PlaceTile.Result.SUCCEEDED, result.message
+    motion = RobotBodySettings().motion()
+    footprints = [convex_hull_2d(t.vertices[:, :2]) for t in PAPER.tiles.values()]
+    tile = PAPER.tiles[1]
+    cache = PAPER.caches[tile.type_name]
+    phases = placement_phases(motion, START, cache, (tile.position[0], tile.position[1]), footprints)
+    assert [phase for phase, _ in seen] == [1, 2, 3, 4, 5, 6]
+    planned = sum(p.duration for p in phases)
+    assert planned <= result.duration <= planned + len(phases) * TICK + 1.0
+    kinds = [(e["event"], e["tile"]) for e in sim.events if e["event"] in PLACEMENT_EVENTS]
+    assert kinds == [("place_started", 1), ("placed", 1)]
+    # the world shows the robot where it truly stands: at the cache while it drives off with the tile
+    snapshot = sim.call(seen[3][1][0])
+    assert any(math.dist((p.x, p.y), cache) < 1e-6 for p in snapshot.robots), snapshot.robots
+    assert list(snapshot.present_tiles) == []  # tile 1 goes down at the end of the placing phase
+    after = sim.call(sim.snapshot.call_async(SimSnapshot.Request()))
+    assert 1 in after.present_tiles
+    assert any(math.dist((p.x, p.y), phases[-1].end) < 1e-6 for p in after.robots), after.robots
+
+
+def test_a_placement_on_absent_supports_is_refused_naming_them(sim: Simulator) -> None:
+    result = sim.place_tile(4)  # an octagon on tiles 1, 2, 3 and 6; only 1 is there
+    assert result.error_code == PlaceTile.Result.FAILED_PRECONDITION
+    assert list(result.missing_supports) == [2, 3, 6] and "support 2, 3, 6" in result.message
+    last = [e for e in sim.events if e["event"] in PLACEMENT_EVENTS][-1]
+    assert last["event"] == "refused" and last["tile"] == 4
+    assert sim.place_tile(99, like=1).error_code == PlaceTile.Result.FAILED_PRECONDITION
+
+
+def test_kinect_frames_carry_the_time_of_the_world_they_show(sim: Simulator) -> None:
+    assert sim.spin_until(lambda: len(sim.clouds) >= 2, 60.0), "no Kinect frames"
+    cloud = sim.clouds[-1]
+    assert (cloud.height, cloud.width, cloud.header.frame_id) == (480, 640, "camera_depth_optical_frame")
+    stamps = {stamp_ns(p.header.stamp) for p in sim.vi_poses}
+    assert stamp_ns(cloud.header.stamp) in stamps  # the overhead cameras saw the VI robot at that time
+    judged = [e for e in sim.events if e["event"] in ("scan_judged", "scan_unjudged")]
+    assert judged and all(e["event"] == "scan_unjudged" for e in judged)  # no vi_node here: nobody judges
+
+
+@pytest.mark.parametrize("executable", ["sim_world", "sim_robot", "sim_vi"])
+def test_bad_parameters_give_one_line_and_exit_code_2(executable: str) -> None:
+    # (a value of another type than the parameter file's does not override it: rcl keeps the file's)
+    command = [*_command(executable, "/robot1"), "-p", "seed:=many"]
+    result = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert lines == [f"{executable}: parameter 'seed' has the wrong type (got 'many', expected like 1)"]

@@ -1,0 +1,151 @@
+"""sim_robot: one simulated assembly robot's body, on board the robot (run in its namespace, /robotK).
+
+Serves the robot's `place_tile` action as the real M3 robot does: drives to the parts cache of the
+tile's type, finds and picks the tile, drives to the structure, places the tile and backs off, with
+the phases and durations of `robot_motion.placement_phases` (`config/tiling_sim.yaml`), sleeping
+on simulated time (`/clock`). The physics is the world's (`sim_world`): at the start of each phase
+the body tells the world where its base will stand when the phase ends (`/sim/motion`), and it asks
+the world before it sets out, when the picking ends (did the tile slip?) and when the placing ends
+(is the tile now in place, or which support is absent?) over `/sim/place`.
+
+The action server appears once the world answers, so the robot's driver is ready (assembly_node's
+heartbeat) only when a placement can really be made. One goal at a time; a second is refused.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+from geometry_msgs.msg import PoseStamped
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+
+from tiling_assembly.polygons import convex_hull_2d
+from tiling_assembly.spinning import run_node
+from tiling_assembly.structure import StructureError
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.msg import SimMotion
+from tiling_assembly_msgs.srv import SimPlace
+from tiling_sim import sim_interface as sim
+from tiling_sim.robot_motion import Point2, placement_phases
+from tiling_sim.sim_settings import RobotBodySettings
+
+Result = PlaceTile.Result
+
+
+class SimRobot(Node):
+    def __init__(self) -> None:
+        super().__init__("sim_robot")
+        self.settings: RobotBodySettings = sim.declare_settings(self, RobotBodySettings)
+        self.name = self.get_namespace().strip("/")
+        if self.name not in self.settings.team:
+            raise ValueError(f"sim_robot runs in the namespace of one of {self.settings.team} "
+                             f"(-r __ns:=/robot1), not '{self.get_namespace()}'")
+        structure = load_structure(self.settings.structure_file)
+        self.motion = self.settings.motion()
+        # where a base may not stand: on any tile of the structure, placed or not
+        self.footprints = [convex_hull_2d(tile.vertices[:, :2]) for tile in structure.tiles.values()]
+        self.position: Point2 = self.settings.robot_starts(structure)[self.name]
+        self.busy = False
+        self.time = sim.SimTime(self)
+        self.world = self.create_client(SimPlace, sim.PLACE)
+        self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, sim.MOTION_QOS)
+        self.server: ActionServer | None = None
+        # on the wall clock: simulated time stands still until every node is up
+        self.waiting = self.create_timer(0.1, self.serve_once_the_world_answers,
+                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def serve_once_the_world_answers(self) -> None:
+        if self.server is not None or not self.world.service_is_ready():
+            return
+        self.waiting.cancel()
+        self.server = ActionServer(
+            self, PlaceTile, "place_tile", execute_callback=self.execute, goal_callback=self.accept,
+            cancel_callback=lambda _handle: CancelResponse.ACCEPT,
+        )
+        self.get_logger().info(f"serving {self.resolve_topic_name('place_tile')} from "
+                               f"({self.position[0]:+.2f}, {self.position[1]:+.2f})")
+
+    def accept(self, _goal: PlaceTile.Goal) -> GoalResponse:
+        if self.busy:
+            self.get_logger().warn(f"{self.name} is busy: refusing a second place_tile goal")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    async def execute(self, handle: Any) -> Result:
+        start = self.time.now
+        self.busy = True
+        try:
+            result = await self.place(handle)
+        finally:
+            self.busy = False
+        result.duration = self.time.now - start
+        return result
+
+    async def place(self, handle: Any) -> Result:
+        """One placement, phase by phase; the result, with the goal's end status set."""
+        goal: PlaceTile.Goal = handle.request
+        answer = await self.ask(SimPlace.Request.STARTING, goal.tile_id)
+        if answer.outcome == SimPlace.Response.ALREADY_PRESENT:
+            return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason)
+        if answer.outcome != SimPlace.Response.OK:
+            return _finish(handle.abort, Result.FAILED_PRECONDITION, answer.reason)
+        tile_xy = (goal.pose.pose.position.x, goal.pose.pose.position.y)
+        phases = placement_phases(self.motion, self.position, (goal.cache.x, goal.cache.y), tile_xy,
+                                  self.footprints)
+        for phase in phases:
+            handle.publish_feedback(PlaceTile.Feedback(phase=phase.phase, phase_progress=0.0,
+                                                       robot_pose=self.pose_msg()))
+            arrive_at = self.time.now + phase.duration
+            self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=phase.end[0],
+                                              y=phase.end[1], yaw=0.0))
+            await self.time.until(arrive_at)
+            self.position = phase.end
+            if handle.is_cancel_requested:
+                return _finish(handle.canceled, Result.CANCELED, "canceled")
+            if phase.phase == PlaceTile.Feedback.PICKING:
+                answer = await self.ask(SimPlace.Request.PICKED, goal.tile_id)
+                if answer.outcome == SimPlace.Response.DROPPED:
+                    return _finish(handle.abort, Result.FAILED_GRASP, answer.reason)
+            if phase.phase == PlaceTile.Feedback.PLACING:
+                answer = await self.ask(SimPlace.Request.PLACING, goal.tile_id)
+                if answer.outcome == SimPlace.Response.ALREADY_PRESENT:
+                    return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason)
+                if answer.outcome != SimPlace.Response.OK:
+                    result = _finish(handle.abort, Result.FAILED_PRECONDITION, answer.reason)
+                    result.missing_supports = list(answer.absent_supports)
+                    return result
+        result = _finish(handle.succeed, Result.SUCCEEDED, "")
+        result.placed_pose = goal.pose
+        return result
+
+    async def ask(self, step: int, tile_id: int) -> SimPlace.Response:
+        """The world's answer to one step of a placement."""
+        return await self.world.call_async(SimPlace.Request(robot=self.name, tile_id=tile_id, step=step))
+
+    def pose_msg(self) -> PoseStamped:
+        """Where the base is: the body knows its own pose exactly (the overhead cameras' view, with its
+        errors, is the world's)."""
+        pose = PoseStamped()
+        pose.header.frame_id = "map"
+        pose.header.stamp = self.time.stamp()
+        pose.pose.position.x, pose.pose.position.y = self.position
+        pose.pose.orientation.w = 1.0
+        return pose
+
+
+def _finish(end: Any, code: int, message: str) -> Result:
+    """End the goal (`handle.succeed`, `abort` or `canceled`) with a result of `code`."""
+    end()
+    return Result(error_code=code, message=message)
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(SimRobot, (ValueError, StructureError), args=args, error_prefix="sim_robot")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,93 @@
+"""When the simulated Kinect of the VI robot takes its next frame.
+
+While the base stands, a frame every `period` s of simulated time, but never before vi_node has
+answered the last one (or `verdict_timeout` s of wall time have passed without an answer): the
+simulated camera streams what the inspection consumes, as a real camera's driver drops what nobody
+takes. After the base arrives at a viewpoint it waits `settle` s, and the next frame is the one the
+explorer stopped for: the world holds its clock for it (see `scan_hold`).
+
+A frame goes through three stages: asked (the world's snapshot is on its way), rendering (in the
+body's own thread) and published (vi_node judges it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class Frame:
+    held: bool  # the explorer stopped for this frame: the world holds its clock
+    asked_wall: float  # s, wall clock
+    stamp_ns: int = 0  # the world's time it shows, once the snapshot arrived
+    published_wall: float | None = None
+
+
+@dataclass
+class ScanCycle:
+    period: float  # s of simulated time between frames while the base stands
+    verdict_timeout: float  # s of wall time a frame waits for its snapshot, or for its verdict
+    settle: float = 0.2  # s of simulated time after an arrival before the first frame
+    next_at: float = 0.0  # s of simulated time of the next frame
+    moving: bool = False
+    arrival_due: bool = False  # the next frame is the one the explorer stopped for
+    frame: Frame | None = None  # the frame in its stages, if any
+
+    def __post_init__(self) -> None:
+        self.next_at = self.next_at or self.period
+
+    def departed(self) -> None:
+        self.moving = True
+
+    def arrived(self, now: float) -> None:
+        self.moving = False
+        self.next_at = now + self.settle
+        self.arrival_due = True
+
+    def start(self, now: float, wall: float) -> Frame | None:
+        """A new frame when one is due at `now` (simulated s); None otherwise."""
+        if self.moving or self.frame is not None or now < self.next_at:
+            return None
+        self.next_at = now + self.period
+        self.frame = Frame(held=self.arrival_due, asked_wall=wall)
+        self.arrival_due = False
+        return self.frame
+
+    def snapshot_arrived(self, frame: Frame, stamp_ns: int) -> bool:
+        """The world's snapshot for `frame` arrived; False when the frame was given up meanwhile."""
+        if self.frame is not frame:
+            return False
+        frame.stamp_ns = stamp_ns
+        return True
+
+    def published(self, frame: Frame, wall: float) -> None:
+        if self.frame is frame:
+            frame.published_wall = wall
+
+    def judged(self, stamp_ns: int, wall: float) -> tuple[Frame, float] | None:
+        """vi_node answered a scan of `stamp_ns`: the published frame it ends and the wall delay
+        since it was published, or None when it is about an older frame."""
+        frame = self.frame
+        if frame is None or frame.published_wall is None or stamp_ns < frame.stamp_ns:
+            return None
+        self.frame = None
+        return frame, wall - frame.published_wall
+
+    def overdue(self, wall: float) -> Frame | None:
+        """The frame given up at `wall`: its snapshot or its verdict did not come in time."""
+        frame = self.frame
+        if frame is None:
+            return None
+        if frame.published_wall is not None:
+            late = wall - frame.published_wall > self.verdict_timeout
+        else:
+            late = frame.stamp_ns == 0 and wall - frame.asked_wall > self.verdict_timeout
+        if late:
+            self.frame = None
+            return frame
+        return None
+
+    def failed(self, frame: Frame) -> None:
+        """No frame came of the snapshot (rendering failed): give it up."""
+        if self.frame is frame:
+            self.frame = None

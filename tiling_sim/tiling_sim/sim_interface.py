@@ -1,0 +1,94 @@
+"""The simulator-internal interface between `sim_world` and the robots' simulated bodies, and what
+the three nodes share on the ROS side (declaring their settings, simulated time).
+
+Real robots never use it; it stands for the physics the real robots would meet. Names and QoS:
+
+| name | type | from -> to | QoS |
+|---|---|---|---|
+| `/clock` | rosgraph_msgs/Clock | world -> all | reliable, depth 10 (read best effort, depth 1) |
+| `/sim/place` | SimPlace.srv | `sim_robot` -> world | service: each placement step, atomically |
+| `/sim/snapshot` | SimSnapshot.srv | `sim_vi` -> world | service: tiles, robots, stamp; may hold the clock |
+| `/sim/motion` | SimMotion.msg | bodies -> world | reliable, depth 100: where a base stands from when |
+| `/sim/scan_progress` | SimScanProgress.msg | `sim_vi` -> world | reliable, depth 20: the scan's fate |
+| `/sim/events` | std_msgs/String (JSON) | world -> runner | reliable, transient local, depth 1000 |
+| `/sim/start` | std_msgs/Empty | runner -> world | reliable, transient local, depth 1000 |
+
+Everything heavy stays on the robot that makes it: the Kinect's point cloud is rendered by the VI
+robot's body from a snapshot of a few hundred bytes and published on its own host.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock as ClockMsg
+
+from tiling_sim.alarms import Alarms
+
+PLACE = "/sim/place"
+SNAPSHOT = "/sim/snapshot"
+MOTION = "/sim/motion"
+SCAN_PROGRESS = "/sim/scan_progress"
+EVENTS = "/sim/events"
+START = "/sim/start"
+
+CLOCK_OUT = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+CLOCK_IN = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)  # as rclpy's own time source
+MOTION_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+SCAN_PROGRESS_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE)
+EVENTS_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def declare_settings(node: Node, settings_class: Any) -> Any:
+    """Declare every field of `settings_class` (a `sim_settings` class) as a parameter of `node`, with
+    its description, and return the settings the parameters give (ValueError: one line)."""
+    defaults = settings_class()
+    values = {}
+    for name in settings_class.names():
+        descriptor = ParameterDescriptor(description=settings_class.description(name), dynamic_typing=True)
+        values[name] = node.declare_parameter(name, getattr(defaults, name), descriptor).value
+    return settings_class.from_values(values)  # run_node names the node
+
+
+def stamp_ns(stamp: Any) -> int:
+    return int(stamp.sec) * 10**9 + int(stamp.nanosec)
+
+
+def stamp_of(seconds: float) -> Any:
+    """A builtin_interfaces/Time `seconds` after zero."""
+    msg = ClockMsg().clock
+    nanoseconds = round(seconds * 1e9)
+    msg.sec, msg.nanosec = divmod(nanoseconds, 10**9)
+    return msg
+
+
+class SimTime:
+    """Simulated time as `/clock` tells a body, and alarms on it. The node's other callbacks run on
+    the same executor, so alarms wake them in the order they are due."""
+
+    def __init__(self, node: Node, on_tick: Callable[[], None] | None = None) -> None:
+        self.now = 0.0  # s, the latest /clock
+        self._alarms = Alarms()
+        self._on_tick = on_tick
+        node.create_subscription(ClockMsg, "/clock", self._on_clock, CLOCK_IN)
+
+    def _on_clock(self, msg: ClockMsg) -> None:
+        self.now = max(self.now, stamp_ns(msg.clock) * 1e-9)
+        for wake in self._alarms.due(self.now):
+            wake()
+        if self._on_tick is not None:
+            self._on_tick()
+
+    def until(self, at: float) -> Future:
+        """A future done once simulated time reaches `at` (s)."""
+        future = Future()
+        self._alarms.set(at, lambda: future.done() or future.set_result(True))
+        return future
+
+    def stamp(self) -> Any:
+        return stamp_of(self.now)

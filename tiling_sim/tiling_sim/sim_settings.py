@@ -1,0 +1,231 @@
+"""The settings of the simulated testbed's three kinds of process, with defaults and descriptions.
+
+`sim_world` (the clock, the physical structure, faults, overhead localization), `sim_robot` (one
+assembly robot's body) and `sim_vi` (the VI robot's body) read the same `config/tiling_sim.yaml`
+(`/**: ros__parameters:`, so every node of the file's command line gets every value). Each node
+declares only the fields of its own settings class below, as ROS parameters with the same names
+and descriptions; rclpy leaves the file's other values alone, so a node ignores what is meant for
+the others. What all of them must agree on (the structure, the team, where everybody starts) is
+`SimLayout`, the base of every class. Lengths in m, angles in rad, times in s unless named.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+from tiling_assembly.structure import Structure
+from tiling_sim.robot_motion import MotionModel, Point2, start_positions
+
+VI_ROBOT = "vi"  # the VI robot's name: its namespace and the prefix of its topics
+
+
+def _setting(default: Any, description: str) -> Any:
+    if isinstance(default, list):
+        return field(default_factory=lambda: list(default), metadata={"description": description})
+    return field(default=default, metadata={"description": description})
+
+
+@dataclass(frozen=True)
+class SimLayout:
+    """What every simulated part knows of the testbed: the structure, the team, where it starts."""
+
+    structure_file: str = _setting("", "Structure YAML being built (required).")
+    robot_names: list[str] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        ["robot1", "robot2"], "Simulated assembly robots (their namespaces).")
+    robot_start_xy: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.0], "x1, y1, x2, y2, ... start positions of the robots in map (m); fewer than 2 numbers: "
+        "spread on a circle around the structure.")
+    vi_start_pose: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.9, 0.0, math.pi], "x, y, yaw of the VI robot's base at the start.")
+    seed: int = _setting(1, "Seed of every random choice of the testbed (faults, localization errors, "
+                            "Kinect noise).")
+
+    @classmethod
+    def names(cls) -> list[str]:
+        return [f.name for f in fields(cls)]
+
+    @classmethod
+    def description(cls, name: str) -> str:
+        return next(f.metadata["description"] for f in fields(cls) if f.name == name)
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any], source: str = "") -> Any:
+        """Settings with `values` (name -> value, as ROS parameters give them) applied and checked;
+        a ValueError names the parameter and the problem in one line."""
+        defaults = cls()
+        known = set(cls.names())
+        changes = {}
+        for name, value in values.items():
+            if name not in known:
+                raise _bad(source, f"unknown parameter '{name}'")
+            changes[name] = _coerce(name, value, getattr(defaults, name), source)
+        settings = replace(defaults, **changes)
+        settings.check(source)
+        return settings
+
+    def check(self, source: str) -> None:
+        if not self.structure_file:
+            raise _bad(source, "parameter 'structure_file' is required")
+        if not [r for r in self.robot_names if r]:
+            raise _bad(source, "parameter 'robot_names' is empty: the testbed needs an assembly robot")
+        if len(self.vi_start_pose) != 3:
+            raise _bad(source, "parameter 'vi_start_pose' needs x, y, yaw")
+        if len(self.robot_start_xy) >= 2 and len(self.robot_start_xy) != 2 * len(self.team):
+            raise _bad(source, f"parameter 'robot_start_xy' needs 2 numbers per robot "
+                             f"({len(self.team)}), got {len(self.robot_start_xy)}")
+
+    @property
+    def team(self) -> list[str]:
+        return [r for r in self.robot_names if r]
+
+    def robot_starts(self, structure: Structure) -> dict[str, Point2]:
+        """Where each assembly robot stands at the start."""
+        starts = list(self.robot_start_xy)
+        if len(starts) < 2:  # automatic
+            centres = [(tile.position[0], tile.position[1]) for tile in structure.tiles.values()]
+            return dict(zip(self.team, start_positions(centres, len(self.team)), strict=True))
+        return {r: (starts[2 * k], starts[2 * k + 1]) for k, r in enumerate(self.team)}
+
+    @property
+    def vi_start(self) -> tuple[float, float, float]:
+        x, y, yaw = self.vi_start_pose
+        return (x, y, yaw)
+
+
+@dataclass(frozen=True)
+class WorldSettings(SimLayout):
+    """`sim_world`: the clock, the physical structure, faults, overhead localization."""
+
+    real_time_factor: float = _setting(
+        20.0, "How much faster than the wall clock simulated time runs (at the wall clock's pace while "
+        "the scan the VI robot stopped for is judged: the inspection's real cost).")
+    clock_step: float = _setting(0.02, "s of wall-clock time between two /clock messages.")
+    wait_for_start: bool = _setting(False, "Hold simulated time at 0 until a message on /sim/start.")
+    removals: int = _setting(0, "Tiles to remove during the build.")
+    removal_window_start: float = _setting(40.0, "s of simulated time from which removals may happen.")
+    removal_window_end: float = _setting(200.0, "s of simulated time by which removals happen.")
+    drop_probability: float = _setting(0.0, "Chance that a tile slips from the gripper during a placement.")
+    overhead_position_error: float = _setting(0.05, "Largest overhead localization error, m.")
+    overhead_yaw_error_deg: float = _setting(10.0, "Largest overhead heading error, degrees.")
+    scan_hold_limit: float = _setting(
+        30.0, "Longest the clock waits (s of wall time) for the VI robot's scan it was held for (stopped "
+        "while rendered, at the wall clock's pace while judged) before running fast again: the VI body "
+        "died or its messages were lost.")
+
+    def check(self, source: str) -> None:
+        super().check(source)
+        if self.real_time_factor <= 0 or self.clock_step <= 0:
+            raise _bad(source, "parameters 'real_time_factor' and 'clock_step' must be positive")
+        if not 0.0 <= self.drop_probability <= 1.0:
+            raise _bad(source, "parameter 'drop_probability' must lie in [0, 1]")
+        if self.removals < 0 or self.removal_window_end < self.removal_window_start:
+            raise _bad(source, "parameter 'removals' must not be negative and the removal window "
+                             "must not end before it starts")
+        if self.scan_hold_limit <= 0:
+            raise _bad(source, "parameter 'scan_hold_limit' must be positive")
+
+
+@dataclass(frozen=True)
+class BodySettings(SimLayout):
+    """What every simulated robot body knows: how its base moves, the size of an assembly robot."""
+
+    drive_speed: float = _setting(0.15, "Base speed, m/s.")
+    turn_speed: float = _setting(1.0, "Base turning speed, rad/s.")
+    robot_size: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.33, 0.33, 0.35], "Box standing for an assembly robot: x, y, z size (m).")
+
+    def check(self, source: str) -> None:
+        super().check(source)
+        if self.drive_speed <= 0 or self.turn_speed <= 0:
+            raise _bad(source, "parameters 'drive_speed' and 'turn_speed' must be positive")
+        if len(self.robot_size) != 3 or min(self.robot_size) <= 0:
+            raise _bad(source, "parameter 'robot_size' needs 3 positive sizes")
+
+
+@dataclass(frozen=True)
+class RobotBodySettings(BodySettings):
+    """`sim_robot`: one assembly robot's body (its place_tile phases and their durations)."""
+
+    locate_time: float = _setting(2.0, "s to find a tile with the laser at its cache.")
+    pick_time: float = _setting(6.0, "s to pick a tile.")
+    place_time: float = _setting(10.0, "s to place a tile.")
+    retreat_time: float = _setting(2.0, "s to back off after placing.")
+    approach_distance: float = _setting(
+        0.25, "m from a tile's centre to where the base stops to place it (further out if the base would "
+        "stand on the structure).")
+    base_clearance: float = _setting(0.03, "m an assembly robot's base keeps from every tile of the structure.")
+
+    def check(self, source: str) -> None:
+        super().check(source)
+        durations = (self.locate_time, self.pick_time, self.place_time, self.retreat_time)
+        if min(durations) < 0 or self.approach_distance < 0 or self.base_clearance < 0:
+            raise _bad(source, "phase durations, 'approach_distance' and 'base_clearance' must not "
+                             "be negative")
+
+    def motion(self) -> MotionModel:
+        return MotionModel(
+            drive_speed=self.drive_speed, turn_speed=self.turn_speed, locate_time=self.locate_time,
+            pick_time=self.pick_time, place_time=self.place_time, retreat_time=self.retreat_time,
+            approach_distance=self.approach_distance, base_size=(self.robot_size[0], self.robot_size[1]),
+            base_clearance=self.base_clearance,
+        )
+
+
+@dataclass(frozen=True)
+class ViBodySettings(BodySettings):
+    """`sim_vi`: the VI robot's body (its base and its Kinect)."""
+
+    scan_period: float = _setting(1.0, "s of simulated time between two Kinect scans while the VI robot stands.")
+    verdict_timeout: float = _setting(
+        3.0, "The next scan waits for vi_node's verdict on the last one (/tile_states) or this many s of "
+        "wall-clock time: the simulated camera streams what the inspection consumes.")
+    # the same names as vi_node's: the runner gives both nodes config/vi_node.yaml
+    camera_xyz: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.08, 0.0, 0.55], "Pose of camera_link in the VI robot's base_link: x, y, z (m).")
+    camera_rpy: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.0, 0.45, 0.0], "Pose of camera_link in base_link: roll, pitch, yaw (rad).")
+    intrinsics: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [580.0, 580.0, 319.5, 239.5], "Kinect depth camera fx, fy, cx, cy (px).")
+    intrinsics_size: list[int] = _setting(  # noqa: RUF009 - a field() with a default_factory
+        [640, 480], "Kinect depth image width, height (px).")
+    robots_in_view: bool = _setting(True, "The assembly robots appear in the Kinect's view (as boxes).")
+
+    def check(self, source: str) -> None:
+        super().check(source)
+        if self.scan_period <= 0 or self.verdict_timeout <= 0:
+            raise _bad(source, "parameters 'scan_period' and 'verdict_timeout' must be positive")
+        if len(self.camera_xyz) != 3 or len(self.camera_rpy) != 3:
+            raise _bad(source, "parameters 'camera_xyz' and 'camera_rpy' need 3 numbers each")
+        if len(self.intrinsics) != 4 or len(self.intrinsics_size) != 2 or min(self.intrinsics_size) <= 0:
+            raise _bad(source, "parameters 'intrinsics' (fx, fy, cx, cy) and 'intrinsics_size' "
+                             "(width, height) are incomplete")
+
+    def motion(self) -> MotionModel:
+        return MotionModel(drive_speed=self.drive_speed, turn_speed=self.turn_speed)
+
+
+SETTINGS_OF_NODE = {"sim_world": WorldSettings, "sim_robot": RobotBodySettings, "sim_vi": ViBodySettings}
+
+
+def _coerce(name: str, value: Any, default: Any, source: str) -> Any:
+    """`value` as the type of `default` (an int is a float too; nothing else is converted)."""
+    kinds = {bool: (bool,), int: (int,), float: (int, float), str: (str,)}
+    if isinstance(default, list):
+        kind = type(default[0]) if default else float
+        if isinstance(value, list | tuple) and all(_is(v, kinds[kind]) for v in value):
+            return [kind(v) for v in value]
+    elif _is(value, kinds[type(default)]):
+        result = type(default)(value)
+        if not isinstance(result, float) or math.isfinite(result):
+            return result
+    raise _bad(source, f"parameter '{name}' has the wrong type (got {value!r}, expected like {default!r})")
+
+
+def _bad(source: str, problem: str) -> ValueError:
+    return ValueError(f"{source}: {problem}" if source else problem)
+
+
+def _is(value: Any, kinds: tuple[type, ...]) -> bool:
+    return isinstance(value, kinds) and (bool in kinds or not isinstance(value, bool))

@@ -1,0 +1,210 @@
+"""sim_vi: the simulated VI robot's body, on board the robot (run in its namespace, /vi).
+
+Serves the base's `navigate_to` (turn, drive, turn at the speeds of `config/tiling_sim.yaml`,
+sleeping on simulated time) and is its Kinect: while the base stands, it takes a frame when one is
+due (`scan_cycle`: every `scan_period` s, never before vi_node judged the last one), asks the world
+for a snapshot (`/sim/snapshot`: tiles in place, where the assembly robots truly stand, the time),
+renders it from its own true camera pose on a thread of its own (`kinect`) and publishes it on
+`camera/depth/points` here, on the robot: a 3.7 MB cloud never crosses the robots' network. It
+tells the world how each frame fares (`/sim/scan_progress`), which paces the clock for the frame
+the explorer stopped for after an arrival (stopped while it renders, wall pace while judged).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped
+from rclpy.action import ActionServer, CancelResponse
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2, PointField
+
+from tiling_assembly.geometry import (
+    quaternion_from_rotation,
+    rotation_from_quaternion,
+    rotation_from_rpy,
+    rpy_from_rotation,
+)
+from tiling_assembly.spinning import run_node
+from tiling_assembly.structure import StructureError
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.action import NavigateTo
+from tiling_assembly_msgs.msg import SimMotion, SimScanProgress, TileStateArray
+from tiling_assembly_msgs.srv import SimSnapshot
+from tiling_sim import sim_interface as sim
+from tiling_sim.kinect import ClutterBox, KinectScene, KinectSimulator, PinholeIntrinsics, camera_pose
+from tiling_sim.robot_motion import drive_time_to_pose
+from tiling_sim.scan_cycle import Frame, ScanCycle
+from tiling_sim.sim_settings import ViBodySettings
+from vi_node.point_cloud import cloud_bytes, cloud_fields
+
+# reliable: Fast DDS loses most fragmented 3.7 MB samples best effort, and the next frame waits for
+# the verdict on this one (vi_node's sensor_reliability auto follows)
+CAMERA = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+Pose2 = tuple[float, float, float]
+
+
+class SimVi(Node):
+    def __init__(self) -> None:
+        super().__init__("sim_vi")
+        self.settings: ViBodySettings = sim.declare_settings(self, ViBodySettings)
+        s = self.settings
+        self.name = self.get_namespace().strip("/")
+        if not self.name:
+            raise ValueError("sim_vi runs in the VI robot's namespace (-r __ns:=/vi)")
+        self.structure = load_structure(s.structure_file)
+        self.motion = s.motion()
+        self.pose: Pose2 = s.vi_start
+        fx, fy, cx, cy = s.intrinsics
+        width, height = s.intrinsics_size
+        self.kinect = KinectSimulator(PinholeIntrinsics(fx, fy, cx, cy, width, height), seed=s.seed)
+        self.mount = (tuple(s.camera_xyz), tuple(s.camera_rpy))
+        self.cycle = ScanCycle(s.scan_period, s.verdict_timeout)
+        self.lock = threading.Lock()  # the cycle, between the executor and the render thread
+        self.render_pool = ThreadPoolExecutor(max_workers=1)
+        self.time = sim.SimTime(self, on_tick=self.tick)
+        self.world = self.create_client(SimSnapshot, sim.SNAPSHOT)
+        self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, sim.MOTION_QOS)
+        self.progress_pub = self.create_publisher(SimScanProgress, sim.SCAN_PROGRESS, sim.SCAN_PROGRESS_QOS)
+        self.cloud_pub = self.create_publisher(PointCloud2, "camera/depth/points", CAMERA)
+        self.create_subscription(TileStateArray, "/tile_states", self.on_verdict, 10)
+        self.server: ActionServer | None = None
+        # on the wall clock: simulated time stands still until every node is up
+        self.waiting = self.create_timer(0.1, self.serve_once_the_world_answers,
+                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def serve_once_the_world_answers(self) -> None:
+        if self.server is not None or not self.world.service_is_ready():
+            return
+        self.waiting.cancel()
+        self.server = ActionServer(self, NavigateTo, "navigate_to", execute_callback=self.navigate,
+                                   cancel_callback=lambda _handle: CancelResponse.ACCEPT)
+        self.get_logger().info(f"serving {self.resolve_topic_name('navigate_to')} and the Kinect on "
+                               f"{self.resolve_topic_name('camera/depth/points')}")
+
+    # --- the base -----------------------------------------------------------------------------
+    async def navigate(self, handle: Any) -> NavigateTo.Result:
+        target = handle.request.target.pose
+        o = target.orientation
+        yaw = rpy_from_rotation(rotation_from_quaternion(o.x, o.y, o.z, o.w))[2]
+        goal = (target.position.x, target.position.y, yaw)
+        with self.lock:
+            self.cycle.departed()
+        feedback = NavigateTo.Feedback(distance_remaining=float(math.dist(self.pose[:2], goal[:2])))
+        feedback.current_pose = self.pose_msg()
+        handle.publish_feedback(feedback)
+        arrive_at = self.time.now + drive_time_to_pose(self.motion, self.pose, goal)
+        self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=goal[0], y=goal[1], yaw=goal[2]))
+        await self.time.until(arrive_at)
+        self.pose = goal
+        with self.lock:
+            self.cycle.arrived(self.time.now)  # the base settles, then the frame the explorer waits for
+        result = NavigateTo.Result(success=True)
+        result.final_pose = self.pose_msg()  # stamped with the time of arrival
+        handle.succeed()
+        return result
+
+    def pose_msg(self) -> PoseStamped:
+        """Where the base is (the body knows its own pose exactly; the overhead view is the world's)."""
+        pose = PoseStamped()
+        pose.header.frame_id = "map"
+        pose.header.stamp = self.time.stamp()
+        pose.pose.position.x, pose.pose.position.y = self.pose[0], self.pose[1]
+        o = pose.pose.orientation
+        o.x, o.y, o.z, o.w = quaternion_from_rotation(rotation_from_rpy(0.0, 0.0, self.pose[2]))
+        return pose
+
+    # --- the Kinect ---------------------------------------------------------------------------
+    def tick(self) -> None:
+        """A new simulated time: give up a frame that waited too long, or take the next one."""
+        if self.server is None:
+            return  # the world does not answer yet
+        with self.lock:
+            overdue = self.cycle.overdue(time.monotonic())
+            looked_at = self.cloud_pub.get_subscription_count() > 0  # else rendering would only cost
+            frame = self.cycle.start(self.time.now, time.monotonic()) if looked_at else None
+        if overdue is not None:
+            self.give_up(overdue)
+        if frame is not None:
+            request = SimSnapshot.Request(hold_clock=frame.held)
+            self.world.call_async(request).add_done_callback(lambda future: self.on_snapshot(frame, future))
+
+    def on_snapshot(self, frame: Frame, future: Any) -> None:
+        snapshot: SimSnapshot.Response | None = future.result()
+        with self.lock:
+            wanted = snapshot is not None and self.cycle.snapshot_arrived(frame, sim.stamp_ns(snapshot.stamp))
+        if wanted:
+            self.render_pool.submit(self.render, frame, snapshot, self.pose)
+
+    def render(self, frame: Frame, snapshot: SimSnapshot.Response, pose: Pose2) -> None:
+        """One Kinect frame of the snapshot's world from the camera's true pose (on the render thread)."""
+        try:
+            cloud = self.kinect.scan(self.scene(snapshot), camera_pose(*pose, *self.mount))
+            if not self.context.ok():
+                return  # shut down while the frame was rendered
+            with self.lock:
+                self.cycle.published(frame, time.monotonic())
+            self.cloud_pub.publish(cloud_msg(cloud, snapshot.stamp))
+            self.progress(SimScanProgress.PUBLISHED, frame)
+        except Exception as error:
+            if self.context.ok():
+                self.get_logger().error(f"Kinect simulation failed: {error}")
+                with self.lock:
+                    self.cycle.failed(frame)
+                self.progress(SimScanProgress.FAILED, frame)
+
+    def scene(self, snapshot: SimSnapshot.Response) -> KinectScene:
+        size = tuple(self.settings.robot_size)
+        robots = [ClutterBox((p.x, p.y, size[2] / 2), size) for p in snapshot.robots]
+        return KinectScene.from_structure(self.structure, list(snapshot.present_tiles),
+                                          clutter=robots if self.settings.robots_in_view else [])
+
+    def on_verdict(self, msg: TileStateArray) -> None:
+        """vi_node has judged a scan (states or the reason it has none): the camera may take the next."""
+        with self.lock:
+            judged = self.cycle.judged(sim.stamp_ns(msg.header.stamp), time.monotonic())
+        if judged is not None:
+            frame, delay = judged
+            self.progress(SimScanProgress.JUDGED, frame, wall_delay=delay, problem=msg.problem)
+
+    def give_up(self, frame: Frame) -> None:
+        if frame.stamp_ns == 0:
+            self.get_logger().warn("the world did not answer a snapshot in time: taking the next frame")
+            self.progress(SimScanProgress.FAILED, frame)
+            return
+        self.get_logger().warn(f"no verdict on the scan of t={frame.stamp_ns * 1e-9:.2f} s within "
+                               f"{self.settings.verdict_timeout:g} s: taking the next one")
+        self.progress(SimScanProgress.UNJUDGED, frame)
+
+    def progress(self, stage: int, frame: Frame, wall_delay: float = 0.0, problem: str = "") -> None:
+        """Tell the world how `frame` fares (a frame without a snapshot releases any hold)."""
+        self.progress_pub.publish(SimScanProgress(stage=stage, scan_stamp=sim.stamp_of(frame.stamp_ns * 1e-9),
+                                                  wall_delay=wall_delay, problem=problem))
+
+
+def cloud_msg(cloud: np.ndarray, stamp: Any) -> PointCloud2:
+    """An organized (H, W, 3) cloud as an x y z float32 PointCloud2 in the depth camera's optical frame."""
+    msg = PointCloud2(height=cloud.shape[0], width=cloud.shape[1], is_bigendian=False,
+                      point_step=12, row_step=12 * cloud.shape[1], is_dense=False)
+    msg.header.stamp = stamp
+    msg.header.frame_id = "camera_depth_optical_frame"
+    msg.fields = [PointField(name=n, offset=o, datatype=d, count=c) for n, o, d, c in cloud_fields()]
+    msg.data = cloud_bytes(cloud)
+    return msg
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(SimVi, (ValueError, StructureError), args=args, error_prefix="sim_vi",
+                    on_shutdown=lambda node: node.render_pool.shutdown(wait=True, cancel_futures=True))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
