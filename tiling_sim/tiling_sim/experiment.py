@@ -37,7 +37,7 @@ from tiling_sim.process_group import ProcessGroup
 from tiling_sim.ros_domain import claim_domain_id, isolate
 from tiling_sim.trial_record import DetectionStats, TrialRecord, detection_stats
 
-HEAVY_NODES = {"vi_body", "vi_node", "vi_explorer"}  # ray casting, point clouds (the world is light: the clock)
+HEAVY_NODES = {"sim_vi", "vi_node", "vi_explorer"}  # ray casting, point clouds (the world is light: the clock)
 
 
 @dataclass
@@ -146,8 +146,8 @@ class Experiment:
         """The command line of every process of a trial, by process name (the name of its log).
 
         The simulated testbed is three kinds of process, as the real one would be: the world
-        (`sim_world`) and, on board each robot, its body (`sim_robot` in /robotK as `robotK_body`,
-        `sim_vi` in /vi as `vi_body`). All read config/tiling_sim.yaml; each takes its own values.
+        (`sim_world`) and, on board each robot, its body (`sim_robot` in /robotK, process
+        `robotK_body`; `sim_vi` in /vi). All read config/tiling_sim.yaml; each takes its own values.
         """
         c, exe = self.config, self.executables
         structure = f"structure_file:={c.structure_file}"
@@ -171,8 +171,8 @@ class Experiment:
         }
         if c.inspection:
             # the camera's mount and intrinsics are vi_node's parameters: the body's Kinect shares them
-            commands["vi_body"] = [exe["sim_vi"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
-                                   *testbed, *sim_time]
+            commands["sim_vi"] = [exe["sim_vi"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
+                                  *testbed, *sim_time]
             commands["vi_node"] = [exe["vi_node"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
                                    "-p", structure, *sim_time]
             commands["vi_explorer"] = [exe["vi_explorer"], "--ros-args", "-r", "__ns:=/vi",
