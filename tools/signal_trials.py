@@ -42,7 +42,8 @@ from tiling_sim.ros_domain import claim_domain_id  # ROS-free: a lock file per d
 REPO = Path(__file__).resolve().parent.parent
 STRUCTURE = str(REPO / "config" / "structures" / "paper_14.yaml")
 BAG = str(REPO / "tests" / "data" / "vi_scans" / "paper_qvga")
-NOISE = ("Traceback", "terminate called", "Fatal Python error", "Segmentation fault", "Exception ignored")
+NOISE = ("Traceback", "terminate called", "Fatal Python error", "Segmentation fault", "Exception ignored",
+         "never awaited", "never retrieved")
 TARGET_MARK = "SIGNAL_TRIAL_TARGET"  # in the target's environment, inherited by whatever it starts
 TRIAL_DIR = "{trial_dir}"  # replaced in every argument by the trial's own folder (ports, reports)
 
@@ -61,6 +62,8 @@ class Command:
 
     def argv(self, trial_dir: Path) -> list[str]:
         arguments = [a.replace(TRIAL_DIR, str(trial_dir)) for a in self.arguments]
+        if not self.package:  # a script of this repository
+            return [sys.executable, str(REPO / self.executable), *arguments]
         return [str(executable_path(self.package, self.executable)), *arguments]
 
 
@@ -68,12 +71,15 @@ class Command:
 class Helper:
     """A process the target needs (a device emulator, a bag replayer, another node); never signalled
     by the trial. `ready_text`: wait until its output shows this; `restart`: start it again whenever
-    it exits, so that the target keeps getting work for the whole trial."""
+    it exits, so that the target keeps getting work for the whole trial; `forbidden_after_stop`: what
+    it must not have said once stopped after the target (how a target that did not stop its work
+    shows)."""
 
     name: str
     command: Command
     ready_text: str | None = None
     restart: bool = False
+    forbidden_after_stop: str | None = None  # in its log once it stopped: the target failed
 
 
 @dataclass(frozen=True)
@@ -151,9 +157,11 @@ def scenarios() -> list[Scenario]:
                                   *params_file("hardware_drivers"), *arm, "-p", structure)),
         Scenario("base_navigator", node("hardware_drivers", "base_navigator", "-r", "__ns:=/vi",
                                         *params_file("hardware_drivers"))),
-        Scenario("base_navigator (with a base)",
+        Scenario("base_navigator (driving)",
                  node("hardware_drivers", "base_navigator", "-r", "__ns:=/robot1", *params_file("hardware_drivers")),
-                 helpers=(emulator("create"), Helper("create_base", driver("create_base", f"{TRIAL_DIR}/create")))),
+                 helpers=(emulator("create"), Helper("create_base", driver("create_base", f"{TRIAL_DIR}/create")),
+                          Helper("keep_navigating", Command("", "tools/keep_navigating.py", ("--namespace", "/robot1")),
+                                 forbidden_after_stop="last cmd_vel: moving"))),
         Scenario("experiment", Command("tiling_sim", "experiment", (
             "--trials", "1", "--removals", "1", "--no-baseline", "--quiet", "--report", f"{TRIAL_DIR}/report")),
             startup_span=10.0, clean_exit_codes=(0, 130), extra_noise=("did not stop cleanly",)),
@@ -328,6 +336,15 @@ class RunningHelper:
             self._watcher.join()
         stop_politely(self.process)
 
+    def complaint(self) -> str | None:
+        """What the helper saw the target fail to do, once the helper stopped."""
+        text = self.helper.forbidden_after_stop
+        if text is None:
+            return None
+        lines = self.log_path.read_text(errors="replace").splitlines()
+        said = next((line.strip() for line in lines if text in line), None)
+        return f"{self.helper.name} says: {said}" if said is not None else None
+
 
 @contextmanager
 def private_ros_domain() -> Iterator[dict[str, str]]:
@@ -366,10 +383,14 @@ def run_trial(plan: TrialPlan, settings: TrialSettings) -> TrialResult:
                 helper.wait_ready()
             target_env = {**env, TARGET_MARK: str(trial_dir)}
             target = start_process(plan.scenario.target.argv(trial_dir), target_env, log_path)
-            return signal_and_judge(plan, settings, target, log_path)
+            result = signal_and_judge(plan, settings, target, log_path)
         finally:
             for helper in reversed(helpers):
                 helper.stop()
+    complaint = next(filter(None, (helper.complaint() for helper in helpers)), None)
+    if result.failure is None and complaint is not None:
+        return replace(result, failure=complaint)
+    return result
 
 
 def signal_and_judge(plan: TrialPlan, settings: TrialSettings, target: subprocess.Popen[bytes],

@@ -178,7 +178,9 @@ class Spinner:
         finished = wait_for_running_callbacks() and finished
         pool = getattr(self.executor, "_executor", None)
         if isinstance(pool, ThreadPoolExecutor):
-            pool.shutdown(wait=False, cancel_futures=True)
+            # the callbacks already handed to the pool still run: cancelled, their rclpy handler
+            # coroutines are never awaited ("RuntimeWarning: coroutine ... was never awaited" at exit)
+            pool.shutdown(wait=False)
             for worker in list(getattr(pool, "_threads", ())):
                 worker.join(max(0.0, deadline - time.monotonic()))
             finished = wait_for_running_callbacks() and finished  # one taken just before the cancel
