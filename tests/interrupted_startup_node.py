@@ -1,6 +1,10 @@
-"""A node whose start-up is interrupted inside what looks like a C extension's initialisation: the
-KeyboardInterrupt of Ctrl-C / SIGTERM comes out as another exception, as Open3D's import does
-(tests/test_executor_shutdown.py)."""
+"""A node process signalled during its start-up (tests/test_executor_shutdown.py).
+
+    interrupted_startup_node.py SIGNAL import        the signal lands while the node's module is
+                                                     imported, and comes out as ImportError, as a
+                                                     C extension's initialisation (Open3D's) makes it
+    interrupted_startup_node.py SIGNAL construction  the signal lands while the node is being built
+"""
 
 from __future__ import annotations
 
@@ -11,18 +15,29 @@ import time
 
 from rclpy.node import Node
 
+from tiling_assembly.interrupts import run_executable
 from tiling_assembly.spinning import run_node
 
 
-class InterruptedStartupNode(Node):
+def signal_myself() -> None:
+    os.kill(os.getpid(), getattr(signal, sys.argv[1]))
+
+
+class SlowStartingNode(Node):
+    """Built in a second (as one that imports Open3D): a signal meanwhile must wait for the node."""
+
     def __init__(self) -> None:
         super().__init__("interrupted_startup_node")
-        try:
-            os.kill(os.getpid(), getattr(signal, sys.argv[1]))
-            time.sleep(5.0)
-        except KeyboardInterrupt as interrupt:
-            raise ImportError("initialization failed") from interrupt
+        signal_myself()
+        time.sleep(1.0)
+        print("built", flush=True)
+
+
+def main() -> int:
+    return run_node(SlowStartingNode, on_shutdown=lambda node: print("stopped", flush=True))
 
 
 if __name__ == "__main__":
-    sys.exit(run_node(InterruptedStartupNode, (ValueError,)))
+    if sys.argv[2] == "import":
+        sys.exit(run_executable("interrupted_import"))  # tests/interrupted_import.py
+    sys.exit(main())

@@ -83,10 +83,25 @@ def test_ctrl_c_lets_a_running_callback_publish_before_ros_shuts_down() -> None:
 
 
 @pytest.mark.parametrize("signal_name", ["SIGINT", "SIGTERM"])
-def test_a_signal_that_breaks_the_start_up_on_its_way_out_still_exits_quietly(signal_name: str) -> None:
-    """Ctrl-C while Open3D's C extension initialises came out as "ImportError: initialization
+def test_a_signal_that_breaks_the_import_of_a_node_module_exits_quietly(signal_name: str) -> None:
+    """Ctrl-C while Open3D's C extension initialised came out as "ImportError: initialization
     failed" with two tracebacks and exit code 1."""
-    script = Path(__file__).parent / "interrupted_startup_node.py"
-    result = subprocess.run([sys.executable, str(script), signal_name], capture_output=True, text=True, timeout=60)
+    result = _interrupted_startup(signal_name, "import")
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stderr and "ImportError" not in result.stderr
+
+
+@pytest.mark.parametrize("signal_name", ["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_node_is_built_stops_it_once_built(signal_name: str) -> None:
+    """A node interrupted half-built would leave what it started (a device thread, an inspection
+    thread) running, unstopped, into the interpreter's exit."""
+    result = _interrupted_startup(signal_name, "construction")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["built", "stopped"], result.stdout + result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def _interrupted_startup(signal_name: str, phase: str) -> subprocess.CompletedProcess[str]:
+    script = Path(__file__).parent / "interrupted_startup_node.py"
+    return subprocess.run([sys.executable, str(script), signal_name, phase], capture_output=True, text=True,
+                          timeout=60)
