@@ -393,8 +393,11 @@ class ArmDriver(SupervisedDevice):
                 if enabled:
                     max_torque = bus.read(joint.servo_id, AX12.MAX_TORQUE, 2).params
                     bus.write(joint.servo_id, AX12.TORQUE_LIMIT, max_torque)
-                    reply = bus.read(joint.servo_id, AX12.PRESENT_POSITION, 2)
-                    bus.write(joint.servo_id, AX12.GOAL_POSITION, reply.params)
+                    # the present position out of the joint block: a reply of a length that no other
+                    # request here has (Max Torque is 2 bytes too), so a late reply cannot pass for it
+                    block = bus.read(joint.servo_id, dx.JOINT_BLOCK_START, dx.JOINT_BLOCK_LENGTH).params
+                    present = block[AX12.PRESENT_POSITION - dx.JOINT_BLOCK_START :][:2]
+                    bus.write(joint.servo_id, AX12.GOAL_POSITION, present)
                     self._sent_goals.pop(joint.name, None)  # re-armed where it stands
                 bus.write(joint.servo_id, AX12.TORQUE_ENABLE, b"\x01" if enabled else b"\x00")
                 check = bus.read(joint.servo_id, AX12.TORQUE_ENABLE, 1)
