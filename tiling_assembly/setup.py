@@ -9,6 +9,8 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        # how the team starts: read by the launch files and the experiment (the repository's config/)
+        ("share/" + package_name + "/config", ["../config/team.yaml"]),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -3,8 +3,9 @@
     ros2 launch assembly_node assembly_robot.launch.py namespace:=robot2 \
         base_port:=/dev/ttyUSB0 arm_port:=/dev/ttyUSB1 laser_port:=/dev/ttyACM0
 
-The same node and parameters as in the simulation (config/assembly_node.yaml); only the robot
-behind the place_tile action differs (hardware_drivers' m3_robot instead of the simulated world).
+The assembly robot's nodes of config/team.yaml, which the simulation's experiment reads too, with
+the same parameters (config/assembly_node.yaml); only the robot behind the place_tile action
+differs (hardware_drivers' m3_robot instead of the simulated robot's body).
 The team's planner_node and auction_node run once per team (team.launch.py of auction_node).
 """
 
@@ -12,11 +13,13 @@ from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
-from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
+
+from tiling_assembly.team_launch import installed_team, role_nodes
 
 
 def generate_launch_description() -> LaunchDescription:
+    role = installed_team()["assembly_robot"]
     namespace = LaunchConfiguration("namespace")
     arguments = [
         DeclareLaunchArgument("namespace", default_value="robot1", description="the robot's namespace"),
@@ -27,7 +30,7 @@ def generate_launch_description() -> LaunchDescription:
     ]
     drivers = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(
-            PathJoinSubstitution([FindPackageShare("hardware_drivers"), "launch", "m3_robot.launch.py"])
+            PathJoinSubstitution([FindPackageShare("hardware_drivers"), "launch", role.hardware])
         ),
         launch_arguments={
             "namespace": namespace,
@@ -37,15 +40,4 @@ def generate_launch_description() -> LaunchDescription:
             "structure_file": LaunchConfiguration("structure_file"),
         }.items(),
     )
-    assembly = Node(
-        package="assembly_node",
-        executable="assembly_node",
-        name="assembly_node",
-        namespace=namespace,
-        parameters=[
-            PathJoinSubstitution([FindPackageShare("assembly_node"), "config", "assembly_node.yaml"]),
-            {"structure_file": LaunchConfiguration("structure_file")},
-        ],
-        output="screen",
-    )
-    return LaunchDescription([*arguments, drivers, assembly])
+    return LaunchDescription([*arguments, drivers, *role_nodes(role, namespace)])

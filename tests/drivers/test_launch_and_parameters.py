@@ -2,7 +2,9 @@
 
 The launch files are checked statically here, without the `launch` package (not on PyPI): they
 compile, use only the launch/launch_ros API, and name executables, parameter files and launch files
-the workspace installs. tests/test_real_launch.py runs them under the real `ros2 launch` where it is
+the workspace installs. The team's nodes come from config/team.yaml through
+tiling_assembly.team_launch (tests/test_team_file.py checks that file against the workspace and the
+experiment). tests/test_real_launch.py runs them under the real `ros2 launch` where it is
 installed. The parameter files are checked against the nodes themselves: every key is a parameter
 the node declares (a misspelt key would otherwise be silently ignored by ROS).
 """
@@ -23,6 +25,7 @@ PACKAGE = REPO / "hardware_drivers"
 INSTALL = REPO / "install"
 LAUNCH_FILES = sorted(REPO.glob("*/launch/*.launch.py"))
 ROBOT_LAUNCH_FILES = [p for p in LAUNCH_FILES if p.name != "team.launch.py"]  # nodes in a robot's namespace
+TEAM_LAUNCH = REPO / "tiling_assembly" / "tiling_assembly" / "team_launch.py"
 # the value types launch_ros' ParameterValue accepts (a bare `list` fails: "Unrecognized data type")
 SCALAR_TYPES = {"int", "float", "bool", "str"}
 
@@ -66,13 +69,14 @@ def parse(path: Path) -> ast.Module:
 @pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
 def test_launch_file_compiles_and_references_what_the_workspace_installs(path: Path) -> None:
     tree = parse(path)
-    modules = {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
-    assert modules <= {"launch", "launch_ros"}
+    modules = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    assert {m.split(".")[0] for m in modules} <= {"launch", "launch_ros", "tiling_assembly"}
+    assert {m for m in modules if m.startswith("tiling_assembly")} <= {"tiling_assembly.team_launch"}
     assert "generate_launch_description" in [n.name for n in tree.body if isinstance(n, ast.FunctionDef)]
     package = path.parent.parent.name
     assert (INSTALL / package / "share" / package / "launch" / path.name).exists()
     nodes = calls(tree, "Node")
-    assert nodes
+    assert nodes or calls(tree, "role_nodes")
     for node in nodes:
         arguments = keywords(node)
         assert {"package", "executable", "name"} <= set(arguments)
@@ -87,8 +91,11 @@ def test_launch_file_compiles_and_references_what_the_workspace_installs(path: P
 
 @pytest.mark.parametrize("path", ROBOT_LAUNCH_FILES, ids=lambda p: p.name)
 def test_robot_nodes_run_in_the_robots_namespace(path: Path) -> None:
-    for node in calls(parse(path), "Node"):
+    tree = parse(path)
+    for node in calls(tree, "Node"):
         assert "namespace" in keywords(node)
+    for team_nodes in calls(tree, "role_nodes"):
+        assert len(team_nodes.args) == 2, "the robot's namespace argument is not passed on"
 
 
 def value_type_launch_accepts(value_type: ast.expr) -> bool:
@@ -99,7 +106,7 @@ def value_type_launch_accepts(value_type: ast.expr) -> bool:
             and getattr(value_type.slice, "id", "") in SCALAR_TYPES)
 
 
-@pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", [*LAUNCH_FILES, TEAM_LAUNCH], ids=lambda p: p.name)
 def test_typed_parameter_values_use_types_launch_accepts(path: Path) -> None:
     for value in calls(parse(path), "ParameterValue"):
         value_type = keywords(value).get("value_type")

@@ -9,21 +9,21 @@ base_baud, overhead_pose_topic) can be given here too; namespace moves the whole
 The base, its navigate_to server and (optionally) the Kinect driver come from hardware_drivers'
 vi_robot.launch.py, which remaps the driver's organized cloud onto /vi/camera/depth/points
 (frame camera_depth_optical_frame); the overhead cameras must publish geometry_msgs/PoseStamped
-(frame map) on /vi/overhead_pose. Same nodes and parameters as in the simulation
-(config/vi_node.yaml).
+(frame map) on /vi/overhead_pose. The nodes are the VI robot's of config/team.yaml, which the
+simulation's experiment reads too, with the same parameters (config/vi_node.yaml).
 """
 
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
-from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
+
+from tiling_assembly.team_launch import installed_team, role_nodes
 
 
 def generate_launch_description() -> LaunchDescription:
-    settings = PathJoinSubstitution([FindPackageShare("vi_node"), "config", "vi_node.yaml"])
-    structure = {"structure_file": LaunchConfiguration("structure_file")}
+    role = installed_team()["vi_robot"]
     namespace = LaunchConfiguration("namespace")
     arguments = [
         # declared here too, so that the base (which declares it as well) and the inspection nodes
@@ -35,7 +35,7 @@ def generate_launch_description() -> LaunchDescription:
     ]
     base = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(
-            PathJoinSubstitution([FindPackageShare("hardware_drivers"), "launch", "vi_robot.launch.py"])
+            PathJoinSubstitution([FindPackageShare("hardware_drivers"), "launch", role.hardware])
         ),
         launch_arguments={
             "namespace": namespace,
@@ -43,12 +43,4 @@ def generate_launch_description() -> LaunchDescription:
             "start_kinect": LaunchConfiguration("start_kinect"),
         }.items(),
     )
-    inspection = Node(
-        package="vi_node", executable="vi_node", name="vi_node", namespace=namespace,
-        parameters=[settings, structure], output="screen",
-    )
-    explorer = Node(
-        package="vi_node", executable="vi_explorer", name="vi_explorer", namespace=namespace,
-        parameters=[settings, structure], output="screen",
-    )
-    return LaunchDescription([*arguments, base, inspection, explorer])
+    return LaunchDescription([*arguments, base, *role_nodes(role, namespace)])
