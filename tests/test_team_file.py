@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import pytest
@@ -41,3 +42,46 @@ def test_a_bad_team_file_gets_one_line_naming_the_problem(tmp_path: Path, text: 
     with pytest.raises(TeamFileError, match=problem) as error:
         load_team(path)
     assert "\n" not in str(error.value) and str(path) in str(error.value)
+
+
+LAUNCH_ROLES = {"auction_node/launch/team.launch.py": "base_station",
+                "assembly_node/launch/assembly_robot.launch.py": "assembly_robot",
+                "vi_node/launch/inspection.launch.py": "vi_robot"}
+
+
+@pytest.mark.parametrize(("path", "role"), LAUNCH_ROLES.items())
+def test_each_launch_file_starts_its_role_of_the_team_file(path: str, role: str) -> None:
+    text = (REPO / path).read_text()
+    assert f'installed_team()["{role}"]' in text and "role_nodes(" in text
+    assert "Node(" not in text, "a node started beside the team file"
+    if load_team(REPO / "config" / "team.yaml")[role].hardware:
+        assert "role.hardware" in text
+
+
+def test_the_experiment_starts_every_node_of_the_team_file_as_the_launch_files_do(tmp_path: Path) -> None:
+    from tiling_sim.experiment import Experiment, ExperimentConfig, TrialSetup
+
+    config = ExperimentConfig(structure_file=REPO / "config/structures/paper_14.yaml", robots=3,
+                              config_dir=REPO / "config")
+    commands = Experiment(config).node_commands(TrialSetup(1, 1, 0, False))
+    started = set()
+    for argv in commands.values():
+        namespace = next((a.removeprefix("__ns:=") for a in argv if a.startswith("__ns:=")), "")
+        files = tuple(Path(a).name for k, a in itertools.pairwise(argv) if k == "--params-file")
+        started.add((namespace, Path(argv[0]).parent.name, Path(argv[0]).name, files))
+    team = load_team(REPO / "config" / "team.yaml")
+    expected = {("", "tiling_sim", "sim_world", ("tiling_sim.yaml",))}
+    for role in team.values():
+        robots = config.robot_names if role.name == "assembly_robot" else [""]
+        for robot in robots:
+            for node in (*role.nodes, *role.simulated_by):
+                expected.add((role.namespace_of(robot), node.package, node.executable, node.parameters))
+    assert started == expected
+
+
+def test_a_config_folder_without_a_team_file_uses_the_installed_one(tmp_path: Path) -> None:
+    from tiling_sim.experiment import team_file
+
+    assert team_file(tmp_path) == REPO / "install/tiling_assembly/share/tiling_assembly/config/team.yaml"
+    (tmp_path / "team.yaml").write_text("")
+    assert team_file(tmp_path) == tmp_path / "team.yaml"

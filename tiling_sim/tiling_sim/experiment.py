@@ -26,11 +26,12 @@ from pathlib import Path
 
 import rclpy
 import yaml
-from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
 from rclpy.executors import SingleThreadedExecutor
 
 from tiling_assembly.structure import Structure, StructureError
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly.team import TeamFileError, TeamNode, TeamRole, load_team
 from tiling_assembly.time_model import TimeModel
 from tiling_sim.experiment_observer import ExperimentObserver
 from tiling_sim.process_group import ProcessGroup
@@ -94,6 +95,26 @@ def executable(package: str, name: str) -> str:
     return str(path)
 
 
+def team_file(config_dir: Path) -> Path:
+    """The --config folder's team.yaml, else the one installed with tiling_assembly (a folder of
+    parameter files made before the team file existed)."""
+    own = config_dir / "team.yaml"
+    if own.exists():
+        return own
+    try:
+        return Path(get_package_share_directory("tiling_assembly")) / "config" / "team.yaml"
+    except PackageNotFoundError:
+        raise RuntimeError("package tiling_assembly is not installed (build the workspace first)") from None
+
+
+def process_name(role: TeamRole, robot: str, node: TeamNode, body: bool) -> str:
+    """A process's name (and its log's): robotK for an assembly robot's node, robotK_body for its
+    simulated body, else the executable's name."""
+    if not robot:
+        return node.executable
+    return f"{robot}_body" if body else robot if len(role.nodes) == 1 else f"{robot}_{node.executable}"
+
+
 def removals_per_trial(total: int, trials: int, seed: int) -> list[int]:
     """Spread `total` removals over `trials` as evenly as possible, extras on seeded trials."""
     if trials <= 0:
@@ -114,21 +135,16 @@ class Experiment:
         self.sim_limit = 6.0 * self.estimated_makespan + 300.0
         self.run_id = f"{os.getpid()}-{time.time_ns()}"  # marks every process of this run
         self.wall_limit = config.wall_limit or self.sim_limit / config.real_time_factor + 60.0
-        self.executables = {
-            "sim_world": executable("tiling_sim", "sim_world"),
-            "sim_robot": executable("tiling_sim", "sim_robot"),
-            "planner_node": executable("planner_node", "planner_node"),
-            "auction_node": executable("auction_node", "auction_node"),
-            "assembly_node": executable("assembly_node", "assembly_node"),
-        }
-        if config.inspection:
-            self.executables["sim_vi"] = executable("tiling_sim", "sim_vi")
-            self.executables["vi_node"] = executable("vi_node", "vi_node")
-            self.executables["vi_explorer"] = executable("vi_node", "vi_explorer")
+        try:
+            self.team = load_team(team_file(config.config_dir))
+        except TeamFileError as error:
+            raise RuntimeError(str(error)) from None
+        self.sim_world = executable("tiling_sim", "sim_world")
 
-    def params(self, package: str) -> list[str]:
-        path = self.config.config_dir / f"{package}.yaml"
-        return ["--params-file", str(path)] if path.exists() else []
+    def params(self, *files: str) -> list[str]:
+        """--params-file for each of `files` that config/ has."""
+        paths = [self.config.config_dir / name for name in files]
+        return [arg for path in paths if path.exists() for arg in ("--params-file", str(path))]
 
     def start_positions_override(self) -> list[str]:
         """Robot start positions around the structure when the parameter file's do not fit the team."""
@@ -142,54 +158,62 @@ class Experiment:
             return []
         return ["-p", "robot_start_xy:=[0.0]"]
 
+    def computers(self) -> list[tuple[TeamRole, str]]:
+        """Every computer of the team as (role, robot name; "" for the base station and the VI robot)."""
+        vi = [(self.team["vi_robot"], "")] if self.config.inspection else []
+        robots = [(self.team["assembly_robot"], robot) for robot in self.config.robot_names]
+        return [(self.team["base_station"], ""), *vi, *robots]
+
     def node_commands(self, setup: TrialSetup) -> dict[str, list[str]]:
         """The command line of every process of a trial, by process name (the name of its log).
 
-        The simulated testbed is three kinds of process, as the real one would be: the world
-        (`sim_world`) and, on board each robot, its body (`sim_robot` in /robotK, process
-        `robotK_body`; `sim_vi` in /vi). All read config/tiling_sim.yaml; each takes its own values.
+        The team's nodes are those of config/team.yaml, which the launch files read too: per role
+        its nodes and, standing in for its hardware, its simulated body (`sim_robot` as process
+        `robotK_body`, `sim_vi`), with the parameter files the team file names. The world
+        (`sim_world`) is the one process only the simulation has.
         """
-        c, exe = self.config, self.executables
-        structure = f"structure_file:={c.structure_file}"
-        robots = f"robot_names:=[{', '.join(c.robot_names)}]"
-        sim_time = ["-p", "use_sim_time:=true"]
-        testbed = [*self.params("tiling_sim"), "-p", structure, "-p", robots, "-p", f"seed:={setup.seed}",
-                   *self.start_positions_override()]
-        window = (0.15 * self.estimated_makespan, 0.75 * self.estimated_makespan)
-        commands = {
-            "sim_world": [exe["sim_world"], "--ros-args", *testbed,
-                          "-p", f"removals:={setup.removals}",
-                          "-p", f"removal_window_start:={window[0]:.1f}", "-p", f"removal_window_end:={window[1]:.1f}",
-                          "-p", f"real_time_factor:={c.real_time_factor}", "-p", "wait_for_start:=true",
-                          "-p", f"drop_probability:={c.drop_probability if setup.faults else 0.0}"],
-            "planner_node": [exe["planner_node"], "--ros-args", *self.params("planner_node"), "-p", structure,
-                             "-p", robots, *sim_time],
-            "auction_node": [
-                exe["auction_node"], "--ros-args", *self.params("auction_node"), *sim_time,
-                *([] if c.robots_find_missing else ["-p", "robots_find_missing:=false"]),
-            ],
-        }
-        if c.inspection:
-            # the camera's mount and intrinsics are vi_node's parameters: the body's Kinect shares them
-            commands["sim_vi"] = [exe["sim_vi"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
-                                  *testbed, *sim_time]
-            commands["vi_node"] = [exe["vi_node"], "--ros-args", "-r", "__ns:=/vi", *self.params("vi_node"),
-                                   "-p", structure, *sim_time]
-            commands["vi_explorer"] = [exe["vi_explorer"], "--ros-args", "-r", "__ns:=/vi",
-                                       *self.params("vi_node"), *self.params("vi_explorer"), "-p", structure,
-                                       *sim_time]
-        for robot in c.robot_names:
-            commands[f"{robot}_body"] = [exe["sim_robot"], "--ros-args", "-r", f"__ns:=/{robot}", *testbed,
-                                         *sim_time]
-            extra = ["-p", "bid_in_auctions:=false"] if robot == c.silent_robot else []
-            commands[robot] = [exe["assembly_node"], "--ros-args", "-r", f"__ns:=/{robot}",
-                               *self.params("assembly_node"), *sim_time, *extra]
+        commands = {"sim_world": self.world_command(setup)}
+        for role, robot in self.computers():
+            for node in role.nodes:
+                commands[process_name(role, robot, node, body=False)] = self.team_node_command(role, robot, node)
+            for body in role.simulated_by:
+                commands[process_name(role, robot, body, body=True)] = [
+                    *self.team_node_command(role, robot, body), *self.testbed_arguments(setup)]
         return commands
 
+    def team_node_command(self, role: TeamRole, robot: str, node: TeamNode) -> list[str]:
+        c = self.config
+        namespace = role.namespace_of(robot)
+        needs = {"structure_file": f"structure_file:={c.structure_file}",
+                 "robot_names": f"robot_names:=[{', '.join(c.robot_names)}]"}
+        command = [executable(node.package, node.executable), "--ros-args",
+                   *(["-r", f"__ns:={namespace}"] if namespace else []), *self.params(*node.parameters),
+                   *[arg for need in node.needs for arg in ("-p", needs[need])], "-p", "use_sim_time:=true"]
+        if node.executable == "auction_node" and not c.robots_find_missing:
+            command += ["-p", "robots_find_missing:=false"]
+        if node.executable == "assembly_node" and robot == c.silent_robot:
+            command += ["-p", "bid_in_auctions:=false"]
+        return command
+
+    def testbed_arguments(self, setup: TrialSetup) -> list[str]:
+        """What the simulated world and bodies share: the structure, the robots, the trial's seed."""
+        c = self.config
+        return ["-p", f"structure_file:={c.structure_file}", "-p", f"robot_names:=[{', '.join(c.robot_names)}]",
+                "-p", f"seed:={setup.seed}", *self.start_positions_override()]
+
+    def world_command(self, setup: TrialSetup) -> list[str]:
+        c = self.config
+        window = (0.15 * self.estimated_makespan, 0.75 * self.estimated_makespan)
+        return [self.sim_world, "--ros-args", *self.params("tiling_sim.yaml"), *self.testbed_arguments(setup),
+                "-p", f"removals:={setup.removals}",
+                "-p", f"removal_window_start:={window[0]:.1f}", "-p", f"removal_window_end:={window[1]:.1f}",
+                "-p", f"real_time_factor:={c.real_time_factor}", "-p", "wait_for_start:=true",
+                "-p", f"drop_probability:={c.drop_probability if setup.faults else 0.0}"]
+
     def expected_nodes(self) -> list[str]:
-        vi = ["/vi/sim_vi", "/vi/vi_node", "/vi/vi_explorer"] if self.config.inspection else []
-        robots = [f"/{r}/{node}" for r in self.config.robot_names for node in ("sim_robot", "assembly_node")]
-        return ["/sim_world", "/planner_node", "/auction_node", *vi, *robots]
+        team = [f"{role.namespace_of(robot)}/{node.executable}"
+                for role, robot in self.computers() for node in (*role.nodes, *role.simulated_by)]
+        return ["/sim_world", *team]
 
     def run_trial(self, setup: TrialSetup, progress: str) -> TrialRecord:
         record = TrialRecord(trial=setup.trial, seed=setup.seed, removals_planned=setup.removals,
