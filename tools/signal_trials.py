@@ -381,7 +381,7 @@ def run_trial(plan: TrialPlan, settings: TrialSettings) -> TrialResult:
         try:
             for helper in helpers:
                 helper.wait_ready()
-            target_env = {**env, TARGET_MARK: str(trial_dir)}
+            target_env = {**env, TARGET_MARK: str(trial_dir), "PYTHONFAULTHANDLER": "1"}
             target = start_process(plan.scenario.target.argv(trial_dir), target_env, log_path)
             result = signal_and_judge(plan, settings, target, log_path)
         finally:
@@ -408,13 +408,24 @@ def signal_and_judge(plan: TrialPlan, settings: TrialSettings, target: subproces
     try:
         code = target.wait(settings.exit_timeout)
     except subprocess.TimeoutExpired:
-        kill_session(target)
+        dump_stacks_and_kill(target)
         return TrialResult(plan, None, None, f"still running {settings.exit_timeout:g} s after "
                            f"{plan.signal.name}: {last_line(log_path)}", log_path, caught)
     stop_seconds = time.monotonic() - signalled
     kill_session(target)  # anything left in its session
     failure = judge_exit(plan.scenario, code, log_path) or leftovers(log_path.parent)
     return TrialResult(plan, code, stop_seconds, failure, log_path, caught)
+
+
+def dump_stacks_and_kill(process: subprocess.Popen[bytes]) -> None:
+    """SIGABRT first: the target runs with PYTHONFAULTHANDLER set, so its log gets every thread's
+    Python stack, where it hangs."""
+    try:
+        os.kill(process.pid, signal.SIGABRT)
+        process.wait(3.0)
+    except (ProcessLookupError, subprocess.TimeoutExpired):
+        pass
+    kill_session(process)
 
 
 def catches_sigterm(pid: int) -> bool:
@@ -502,6 +513,7 @@ def slug(text: str) -> str:
 def run_campaign(settings: TrialSettings, chosen: Sequence[Scenario],
                  progress: Callable[[str], None] = print) -> list[TrialResult]:
     settings.log_dir.mkdir(parents=True, exist_ok=True)
+    inherit_sigint_unignored()
     plans = plan_trials(settings, chosen)
     results: list[TrialResult] = []
     try:
@@ -517,6 +529,14 @@ def run_campaign(settings: TrialSettings, chosen: Sequence[Scenario],
     finally:
         kill_everything_started()
     return results
+
+
+def inherit_sigint_unignored() -> None:
+    """A shell starts background jobs with SIGINT ignored, and an ignored signal stays ignored across
+    exec: a SIGINT that reached a target before its own handler would be lost, where under
+    `ros2 launch` from a terminal it is not. Python's own handler is not inherited."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @contextmanager

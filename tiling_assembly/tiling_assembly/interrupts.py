@@ -37,6 +37,15 @@ def raise_keyboard_interrupt_on_signals() -> None:
     signal.signal(signal.SIGTERM, _interrupt)
 
 
+def raise_if_signalled() -> None:
+    """KeyboardInterrupt if a signal came: after imports, in case a library swallowed it. Libraries
+    that fall back when an optional module fails to import can swallow the KeyboardInterrupt that
+    broke that import (seen under load: xml.etree's C accelerator imported by networkx, numpy's
+    lazy submodules under scipy's array_api_compat); the node then ran on as if never signalled."""
+    if signalled.is_set():
+        raise KeyboardInterrupt
+
+
 @contextmanager
 def recorded_signals() -> Iterator[list[int]]:
     """Within the block, SIGINT and SIGTERM are only recorded, in the list it yields; the handlers
@@ -84,6 +93,7 @@ def run_executable(module_name: str, interrupted_exit_code: int = 0) -> int:
     raise_keyboard_interrupt_on_signals()
     try:
         main = importlib.import_module(module_name).main
+        raise_if_signalled()
         return int(main() or 0)
     except KeyboardInterrupt:
         return interrupted_exit_code

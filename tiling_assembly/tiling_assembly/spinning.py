@@ -30,6 +30,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from tiling_assembly.interrupts import (
     postponed_signals,
+    raise_if_signalled,
     raise_keyboard_interrupt_on_signals,
     recorded_signals,
     signalled,
@@ -64,6 +65,7 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
     spinner: Spinner | None = None
     try:
         init_ros(args)
+        raise_if_signalled()  # also here: rclpy.init imports the middleware's type support
         try:
             with postponed_signals():
                 node = make_node()
