@@ -16,7 +16,9 @@ with ``cmd_vel``; ``scan`` to find the tile at its cache; ``joint_states`` and
 ``joint_trajectory`` for the arm; ``bumper``/``wheel_drop`` and ``/diagnostics`` of its own
 devices to stop with a clear failure. Tile footprints come from ``/structure`` (latched) or the
 ``structure_file`` parameter. Feedback carries the action's phases; a failure ends with the
-action's error code and one line; a cancel stops the wheels at once.
+action's error code and one line; a cancel stops the wheels at once. One placement at a time: the
+same goal sent again while it runs (by a client that missed the goal response) follows it, with its
+feedback, result and cancel, rather than placing the tile twice; any other goal meanwhile is refused.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import math
 import threading
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -104,6 +107,7 @@ class M3RobotNode(Node):
         self._wheel_drop = False
         self._device_status: dict[str, tuple[int, str, dict[str, str]]] = {}
         self.slot = GoalSlot()
+        self._placement: _Placement | None = None  # the latest placement (under way or ended)
         self.stopping = threading.Event()  # the node is stopping: a mission under way ends as canceled
         self.cmd_vel = self.create_publisher(Twist, "cmd_vel", 10)
         self.trajectory = self.create_publisher(JointTrajectory, "joint_trajectory", 10)
@@ -297,6 +301,11 @@ class M3RobotNode(Node):
 
     # ------------------------------------------------------------------ the action
     def on_goal(self, goal: PlaceTile.Goal) -> GoalResponse:
+        with self._lock:
+            placement = self._placement
+            if placement is not None and not placement.done.is_set() and placement.request == goal:
+                placement.joins.append(time.monotonic())
+                return GoalResponse.ACCEPT  # sent again by a client that missed the goal response
         if not self.slot.reserve():
             self.get_logger().warning(f"goal for tile {goal.tile_id} rejected: a placement is under way")
             return GoalResponse.REJECT
@@ -308,11 +317,42 @@ class M3RobotNode(Node):
 
     def execute(self, goal_handle) -> PlaceTile.Result:
         request: PlaceTile.Goal = goal_handle.request
+        placement = _Placement(request)
+        with self._lock:  # the slot and the placement change together: a goal sent again finds it
+            latest = self._placement
+            joining = latest is not None and latest.claim_join(request, time.monotonic(), self.slot.start_grace)
+            started = not joining and self.slot.start()
+            if started:
+                self._placement = placement
+        if joining:
+            return self._follow(goal_handle, request, latest)
+        if not started:  # a second mission would drive the same robot at the same time
+            goal_handle.abort()
+            return PlaceTile.Result(error_code=int(Outcome.FAILED_PRECONDITION),
+                                    message="another placement is under way")
+        result = MissionResult(Outcome.FAILED_HARDWARE, "the placement ended in an internal error")
         try:
-            result = self._execute(goal_handle, request)
+            result = self._execute(goal_handle, request, placement)
         finally:
             with self._lock:
-                self.slot = GoalSlot()
+                self.slot.finish()
+            message = self._result_message(result)
+            placement.finish(message, result.outcome)
+        self._conclude(goal_handle, request, result)
+        return message
+
+    def _follow(self, goal_handle, request: PlaceTile.Goal, placement: _Placement) -> PlaceTile.Result:
+        """The same goal sent again while its placement runs (its client missed the goal response):
+        it gets that placement's feedback and result, and can cancel it; it does not place the tile
+        a second time."""
+        self.get_logger().warning(f"tile {request.tile_id}: the same goal again (its client missed the "
+                                  "goal response?); it follows the placement under way")
+        placement.followers.append(goal_handle)
+        placement.done.wait()
+        self._conclude(goal_handle, request, MissionResult(placement.outcome, placement.message), quiet=True)
+        return placement.result
+
+    def _result_message(self, result: MissionResult) -> PlaceTile.Result:
         message = PlaceTile.Result()
         message.error_code = int(result.outcome)
         message.message = result.message
@@ -324,22 +364,32 @@ class M3RobotNode(Node):
             message.placed_pose.pose.position.y = result.placed_pose.y
             message.placed_pose.pose.position.z = result.placed_z
             set_yaw(message.placed_pose.pose.orientation, result.placed_pose.yaw)
-        if result.outcome == Outcome.SUCCEEDED:
-            goal_handle.succeed()
-            self.health.set_state(Level.OK, f"idle; placed tile {request.tile_id}")
-            self.get_logger().info(f"placed tile {request.tile_id} in {result.duration:.1f} s")
-        elif result.outcome == Outcome.CANCELED and goal_handle.is_cancel_requested:
-            goal_handle.canceled()
-            self.health.set_state(Level.OK, f"idle; tile {request.tile_id} canceled")
-            self.get_logger().info(f"tile {request.tile_id}: canceled, wheels stopped")
-        else:
-            goal_handle.abort()
-            self.health.set_state(Level.WARN, f"idle; tile {request.tile_id} failed: {result.message}")
-            self.get_logger().error(
-                f"tile {request.tile_id} failed ({result.outcome.name}): {result.message}")
         return message
 
-    def _execute(self, goal_handle, request: PlaceTile.Goal) -> MissionResult:
+    def _conclude(self, goal_handle, request: PlaceTile.Goal, result: MissionResult, quiet: bool = False) -> None:
+        """End the goal as the mission ended; `quiet` for a goal that followed another (told once)."""
+        if result.outcome == Outcome.SUCCEEDED:
+            goal_handle.succeed()
+            if not quiet:
+                self.health.set_state(Level.OK, f"idle; placed tile {request.tile_id}")
+                self.get_logger().info(f"placed tile {request.tile_id} in {result.duration:.1f} s")
+        elif result.outcome == Outcome.CANCELED:
+            # canceled by this goal's client, by a goal that followed it, or by the node stopping
+            if goal_handle.is_cancel_requested:
+                goal_handle.canceled()
+            else:
+                goal_handle.abort()
+            if not quiet:
+                self.health.set_state(Level.OK, f"idle; tile {request.tile_id} canceled")
+                self.get_logger().info(f"tile {request.tile_id}: canceled, wheels stopped")
+        else:
+            goal_handle.abort()
+            if not quiet:
+                self.health.set_state(Level.WARN, f"idle; tile {request.tile_id} failed: {result.message}")
+                self.get_logger().error(
+                    f"tile {request.tile_id} failed ({result.outcome.name}): {result.message}")
+
+    def _execute(self, goal_handle, request: PlaceTile.Goal, placement: _Placement) -> MissionResult:
         with self._lock:
             tile_type = self.tile_types.get(request.tile_type)
         if tile_type is None:
@@ -372,23 +422,56 @@ class M3RobotNode(Node):
                 msg.robot_pose.pose.position.x = pose.x
                 msg.robot_pose.pose.position.y = pose.y
                 set_yaw(msg.robot_pose.pose.orientation, pose.yaw)
-            goal_handle.publish_feedback(msg)
+            for handle in (goal_handle, *placement.followers):
+                handle.publish_feedback(msg)
             self.health.set_state(Level.OK, f"tile {goal.tile_id}: {phase.name.lower()} ({progress:.0%})")
 
-        hardware = _GoalHardware(self, goal_handle)
+        hardware = _GoalHardware(self, goal_handle, placement)
         mission = PlaceTileMission(hardware, self.config, feedback, log=self.get_logger().info)
         return mission.run(goal)
 
 
-class _GoalHardware:
-    """The node's robot interface, with cancellation bound to one goal."""
+@dataclass
+class _Placement:
+    """The placement under way: its request, the goals that sent it again, and how it ended."""
 
-    def __init__(self, node: M3RobotNode, goal_handle) -> None:
+    request: PlaceTile.Goal
+    followers: list = field(default_factory=list)  # goal handles of the goals that sent it again
+    joins: list[float] = field(default_factory=list)  # when such goals were accepted (not started yet)
+    done: threading.Event = field(default_factory=threading.Event)
+    result: PlaceTile.Result = field(default_factory=PlaceTile.Result)
+    outcome: Outcome = Outcome.FAILED_HARDWARE
+
+    @property
+    def message(self) -> str:
+        return self.result.message
+
+    def claim_join(self, request: PlaceTile.Goal, now: float, grace: float) -> bool:
+        """Whether a goal starting now was accepted to join this placement (counted once); an
+        acceptance whose goal did not start within `grace` s lapses (its response was lost too)."""
+        self.joins = [t for t in self.joins if now - t < grace]
+        if not self.joins or request != self.request:
+            return False
+        self.joins.pop(0)
+        return True
+
+    def finish(self, result: PlaceTile.Result, outcome: Outcome) -> None:
+        self.result, self.outcome = result, outcome
+        self.done.set()
+
+
+class _GoalHardware:
+    """The node's robot interface, with cancellation bound to one placement (its goal, and the
+    goals that sent it again)."""
+
+    def __init__(self, node: M3RobotNode, goal_handle, placement: _Placement) -> None:
         self._node = node
         self._goal_handle = goal_handle
+        self._placement = placement
 
     def canceled(self) -> bool:
-        return bool(self._goal_handle.is_cancel_requested) or self._node.stopping.is_set()
+        handles = (self._goal_handle, *self._placement.followers)
+        return any(bool(h.is_cancel_requested) for h in handles) or self._node.stopping.is_set()
 
     def __getattr__(self, name: str):
         return getattr(self._node, name)

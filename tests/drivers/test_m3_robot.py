@@ -211,6 +211,40 @@ def test_cancel_stops_the_wheels(m3) -> None:
     assert after[-1][0] - canceled_at < 2.0
 
 
+def test_the_same_goal_sent_again_follows_the_placement_under_way(m3) -> None:
+    placements_before = m3["nodes"]["m3_robot"].log().count("placing tile 3 ")
+    goal = _goal()
+    goal.cache.x, goal.cache.y = 1.5, 1.5  # far away: the placement is still driving
+    feedback: list = []
+    first = _send(m3["client"], goal, feedback)
+    assert first.accepted
+    _wait_until(lambda: bool(feedback), 20.0, "feedback from the placement")
+    # what a client does that missed the goal response: the same goal again
+    again = _send(m3["client"], goal, [])
+    assert again.accepted
+    assert not _send(m3["client"], _goal(tile_id=4), []).accepted  # another tile: refused meanwhile
+    again.cancel_goal_async()  # the follower's cancel ends the one placement
+    results = [_wait(handle.get_result_async(), 20.0).result for handle in (first, again)]
+    assert [r.error_code for r in results] == [PlaceTile.Result.CANCELED] * 2
+    assert m3["nodes"]["m3_robot"].log().count("placing tile 3 ") == placements_before + 1
+    assert _wheels_stop(m3["create"], within=2.0)
+
+
+def _wait_until(condition, timeout: float, what: str) -> None:  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"{what} did not come within {timeout} s"
+        time.sleep(0.02)
+
+
+def _wait(future, timeout: float):  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout
+    while not future.done():
+        assert time.monotonic() < deadline, f"no result within {timeout} s"
+        time.sleep(0.02)
+    return future.result()
+
+
 def test_a_device_that_stops_answering_fails_with_hardware_error(m3) -> None:
     m3["arm"].send("unplug 0")
     m3["nodes"]["crustcrawler_arm"].wait_for_log("CrustCrawler arm lost", timeout=10.0)
