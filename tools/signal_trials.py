@@ -117,55 +117,109 @@ def driver(executable: str, port: str, *arguments: str) -> Command:
 
 
 def scenarios() -> list[Scenario]:
-    """Every node executable the packages install, each in the states a user meets it in."""
-    structure = f"structure_file:={STRUCTURE}"
-    team = "robot_names:=[robot1, robot2]"
-    arm = (*params_file("crustcrawler_arm"),)
-    planner = Helper("planner_node", node("planner_node", "planner_node", *params_file("planner_node"),
-                                          "-p", structure, "-p", team))
+    """Every node executable the packages install, each in the states a user meets it in: waiting
+    for its inputs, without its device, at work."""
+    missing_port = f"{TRIAL_DIR}/no_device"
+    planner = Helper("planner_node", planner_node())
     replayer = Helper("replay_bag", Command("tiling_sim", "replay_bag", (
         "--bag", BAG, "--rate", "0", "--gap", "0.3", "--wait-subscribers", "60", "--linger", "0.2")),
         restart=True)
-    missing_port = f"{TRIAL_DIR}/no_device"
+    navigating = Helper("keep_navigating", Command("", "tools/keep_navigating.py", ("--namespace", "/robot1")),
+                        forbidden_after_stop="last cmd_vel: moving")
+    base = (emulator("create"), Helper("create_base", driver("create_base", f"{TRIAL_DIR}/create")))
     return [
-        Scenario("planner_node", node("planner_node", "planner_node", *params_file("planner_node"),
-                                      "-p", structure, "-p", team)),
-        Scenario("auction_node", node("auction_node", "auction_node", *params_file("auction_node"))),
-        Scenario("auction_node (with a plan)", node("auction_node", "auction_node", *params_file("auction_node")),
-                 helpers=(planner,)),
-        Scenario("assembly_node", node("assembly_node", "assembly_node", "-r", "__ns:=/robot1",
-                                       *params_file("assembly_node"))),
-        Scenario("assembly_node (with a plan)", node("assembly_node", "assembly_node", "-r", "__ns:=/robot1",
-                                                     *params_file("assembly_node")), helpers=(planner,)),
-        Scenario("vi_node", node("vi_node", "vi_node", "-r", "__ns:=/vi", *params_file("vi_node"),
-                                 "-p", structure), startup_span=6.0),
-        Scenario("vi_node (inspecting)", node("vi_node", "vi_node", "-r", "__ns:=/vi", *params_file("vi_node"),
-                                              "-p", structure), helpers=(replayer,), startup_span=6.0),
+        Scenario("planner_node", planner_node()),
+        Scenario("auction_node", auction_node()),
+        Scenario("auction_node (with a plan)", auction_node(), helpers=(planner,)),
+        Scenario("assembly_node", assembly_node()),
+        Scenario("assembly_node (with a plan)", assembly_node(), helpers=(planner,)),
+        Scenario("assembly_node (building)", assembly_node(*SIM_TIME),
+                 helpers=team_helpers("world", "planner", "body"), startup_span=6.0),
+        Scenario("vi_node", vi_node(), startup_span=6.0),
+        Scenario("vi_node (inspecting)", vi_node(), helpers=(replayer,), startup_span=6.0),
         Scenario("vi_explorer", node("vi_node", "vi_explorer", "-r", "__ns:=/vi", *params_file("vi_node"),
-                                     "-p", structure)),
-        Scenario("sim_world", node("tiling_sim", "sim_world", *params_file("vi_node"), *params_file("tiling_sim"),
-                                   "-p", structure, "-p", team, "-p", "wait_for_start:=true"),
+                                     "-p", STRUCTURE_PARAMETER)),
+        Scenario("sim_world", sim_world("wait_for_start:=true"), startup_span=6.0),
+        Scenario("sim_world (building)", sim_world("wait_for_start:=false"),
+                 helpers=team_helpers("planner", "body", "assembly"), startup_span=6.0),
+        Scenario("sim_robot", sim_robot()),
+        Scenario("sim_robot (building)", sim_robot(), helpers=team_helpers("world", "planner", "assembly"),
                  startup_span=6.0),
+        Scenario("sim_vi", sim_vi(), startup_span=6.0),
         Scenario("create_base", driver("create_base", f"{TRIAL_DIR}/create"), helpers=(emulator("create"),)),
         Scenario("create_base (no device)", driver("create_base", missing_port)),
-        Scenario("crustcrawler_arm", driver("crustcrawler_arm", f"{TRIAL_DIR}/dynamixel", *arm),
+        Scenario("crustcrawler_arm", driver("crustcrawler_arm", f"{TRIAL_DIR}/dynamixel", *ARM),
                  helpers=(emulator("dynamixel"),)),
-        Scenario("crustcrawler_arm (no device)", driver("crustcrawler_arm", missing_port, *arm)),
+        Scenario("crustcrawler_arm (no device)", driver("crustcrawler_arm", missing_port, *ARM)),
         Scenario("hokuyo_urg", driver("hokuyo_urg", f"{TRIAL_DIR}/urg"), helpers=(emulator("urg"),)),
         Scenario("hokuyo_urg (no device)", driver("hokuyo_urg", missing_port)),
         Scenario("m3_robot", node("hardware_drivers", "m3_robot", "-r", "__ns:=/robot1",
-                                  *params_file("hardware_drivers"), *arm, "-p", structure)),
+                                  *params_file("hardware_drivers"), *ARM, "-p", STRUCTURE_PARAMETER)),
         Scenario("base_navigator", node("hardware_drivers", "base_navigator", "-r", "__ns:=/vi",
                                         *params_file("hardware_drivers"))),
-        Scenario("base_navigator (driving)",
-                 node("hardware_drivers", "base_navigator", "-r", "__ns:=/robot1", *params_file("hardware_drivers")),
-                 helpers=(emulator("create"), Helper("create_base", driver("create_base", f"{TRIAL_DIR}/create")),
-                          Helper("keep_navigating", Command("", "tools/keep_navigating.py", ("--namespace", "/robot1")),
-                                 forbidden_after_stop="last cmd_vel: moving"))),
+        Scenario("base_navigator (driving)", node("hardware_drivers", "base_navigator", "-r", "__ns:=/robot1",
+                                                  *params_file("hardware_drivers")), helpers=(*base, navigating)),
         Scenario("experiment", Command("tiling_sim", "experiment", (
             "--trials", "1", "--removals", "1", "--no-baseline", "--quiet", "--report", f"{TRIAL_DIR}/report")),
             startup_span=10.0, clean_exit_codes=(0, 130), extra_noise=("did not stop cleanly",)),
     ]
+
+
+# -- the command lines (as config/team.yaml and the experiment runner give them)
+
+STRUCTURE_PARAMETER = f"structure_file:={STRUCTURE}"
+TEAM_PARAMETER = "robot_names:=[robot1, robot2]"
+SIM_TIME = ("-p", "use_sim_time:=true")
+ARM = params_file("crustcrawler_arm")
+# a one-robot team builds the whole structure itself (no support waits on a robot that is not there)
+BUILDING_TEAM = ("-p", f"structure_file:={STRUCTURE}", "-p", "robot_names:=[robot1]", "-p", "seed:=1",
+                 "-p", "robot_start_xy:=[0.0]")
+
+
+def planner_node(*arguments: str) -> Command:
+    return node("planner_node", "planner_node", *params_file("planner_node"), "-p", STRUCTURE_PARAMETER,
+                "-p", TEAM_PARAMETER, *arguments)
+
+
+def auction_node(*arguments: str) -> Command:
+    return node("auction_node", "auction_node", *params_file("auction_node"), *arguments)
+
+
+def assembly_node(*arguments: str) -> Command:
+    return node("assembly_node", "assembly_node", "-r", "__ns:=/robot1", *params_file("assembly_node"),
+                "-p", STRUCTURE_PARAMETER, *arguments)
+
+
+def vi_node(*arguments: str) -> Command:
+    return node("vi_node", "vi_node", "-r", "__ns:=/vi", *params_file("vi_node"), "-p", STRUCTURE_PARAMETER,
+                *arguments)
+
+
+def sim_world(wait_for_start: str) -> Command:
+    return node("tiling_sim", "sim_world", *params_file("tiling_sim"), *BUILDING_TEAM, "-p", wait_for_start)
+
+
+def sim_robot() -> Command:
+    return node("tiling_sim", "sim_robot", "-r", "__ns:=/robot1", *params_file("tiling_sim"), *BUILDING_TEAM,
+                *SIM_TIME)
+
+
+def sim_vi() -> Command:
+    return node("tiling_sim", "sim_vi", "-r", "__ns:=/vi", *params_file("vi_node"), *params_file("tiling_sim"),
+                *BUILDING_TEAM, *SIM_TIME)
+
+
+def team_helpers(*members: str) -> tuple[Helper, ...]:
+    """The simulated team around a target that is building: the world (running), the planner of a
+    one-robot team, robot1's body and its assembly node."""
+    every = {
+        "world": Helper("sim_world", sim_world("wait_for_start:=false")),
+        "planner": Helper("planner_node", node("planner_node", "planner_node", *params_file("planner_node"),
+                                               *BUILDING_TEAM, *SIM_TIME)),
+        "body": Helper("sim_robot", sim_robot()),
+        "assembly": Helper("assembly_node", assembly_node(*SIM_TIME)),
+    }
+    return tuple(every[member] for member in members)
 
 
 @dataclass(frozen=True)
