@@ -23,6 +23,8 @@ only starts processes and reads their logs.
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 import random
 import signal
@@ -225,6 +227,7 @@ def team_helpers(*members: str) -> tuple[Helper, ...]:
 @dataclass(frozen=True)
 class TrialSettings:
     trials: int = 10  # per scenario
+    per_executable: bool = False  # `trials` per executable instead, shared out among its scenarios
     max_delay: float = 20.0  # s, longest wait before the signal
     startup_share: float = 0.3  # of the trials signalled within the scenario's start-up span
     parallel: int = 2  # trials at once
@@ -294,18 +297,27 @@ def plan_trials(settings: TrialSettings, chosen: Sequence[Scenario]) -> list[Tri
     """Each scenario's trials: SIGINT and SIGTERM in equal shares, delays drawn from the seed; the
     load share of each scenario last. Scenarios interleave so that parallel trials differ."""
     rng = random.Random(settings.seed)
-    per_scenario = []
-    for scenario in chosen:
-        signals = [signal.SIGINT, signal.SIGTERM] * (settings.trials // 2 + 1)
-        signals = signals[: settings.trials]
-        rng.shuffle(signals)
-        loaded_from = settings.trials - round(settings.trials * settings.load_share)
-        per_scenario.append([
-            TrialPlan(scenario, k + 1, signals[k], draw_delay(rng, settings, scenario), k >= loaded_from)
-            for k in range(settings.trials)
-        ])
-    interleaved = [plans[k] for k in range(settings.trials) for plans in per_scenario]
+    per_scenario = [scenario_plans(rng, settings, scenario, trials_of(settings, scenario, chosen))
+                    for scenario in chosen]
+    longest = max((len(plans) for plans in per_scenario), default=0)
+    interleaved = [plans[k] for k in range(longest) for plans in per_scenario if k < len(plans)]
     return sorted(interleaved, key=lambda p: p.under_load)  # stable: the loaded phase after the other
+
+
+def trials_of(settings: TrialSettings, scenario: Scenario, chosen: Sequence[Scenario]) -> int:
+    """`settings.trials` per scenario, or per executable shared out among its scenarios."""
+    if not settings.per_executable:
+        return settings.trials
+    siblings = sum(s.executable == scenario.executable for s in chosen)
+    return math.ceil(settings.trials / siblings)
+
+
+def scenario_plans(rng: random.Random, settings: TrialSettings, scenario: Scenario, trials: int) -> list[TrialPlan]:
+    signals = ([signal.SIGINT, signal.SIGTERM] * (trials // 2 + 1))[:trials]
+    rng.shuffle(signals)
+    loaded_from = trials - round(trials * settings.load_share)
+    return [TrialPlan(scenario, k + 1, signals[k], draw_delay(rng, settings, scenario), k >= loaded_from)
+            for k in range(trials)]
 
 
 def draw_delay(rng: random.Random, settings: TrialSettings, scenario: Scenario) -> float:
@@ -630,11 +642,43 @@ def table(results: Sequence[TrialResult]) -> str:
     return "\n".join(rows)
 
 
+def executable_table(results: Sequence[TrialResult]) -> str:
+    """The same per executable: all its scenarios together."""
+    header = (f"{'executable':18s} {'trials':>6s} {'SIGINT':>6s} {'SIGTERM':>7s} {'load':>5s} {'clean':>5s} "
+              f"{'failed':>6s} {'too early':>9s}")
+    rows = [header, "-" * len(header)]
+    for name in dict.fromkeys(r.plan.scenario.executable for r in results):
+        mine = [r for r in results if r.plan.scenario.executable == name]
+        rows.append(
+            f"{name:18s} {len(mine):6d} {sum(r.plan.signal == signal.SIGINT for r in mine):6d} "
+            f"{sum(r.plan.signal == signal.SIGTERM for r in mine):7d} {sum(r.plan.under_load for r in mine):5d} "
+            f"{sum(r.outcome == 'clean' for r in mine):5d} {sum(r.outcome == 'failed' for r in mine):6d} "
+            f"{sum(r.outcome == 'too early' for r in mine):9d}")
+    return "\n".join(rows)
+
+
+def write_results(results: Sequence[TrialResult], path: Path) -> None:
+    """One JSON object per trial, for a report."""
+    with open(path, "w") as out:
+        for r in results:
+            out.write(json.dumps({
+                "scenario": r.plan.scenario.name, "executable": r.plan.scenario.executable,
+                "trial": r.plan.number, "signal": r.plan.signal.name, "delay": round(r.plan.delay, 3),
+                "under_load": r.plan.under_load, "outcome": r.outcome, "exit_code": r.exit_code,
+                "stop_seconds": None if r.stop_seconds is None else round(r.stop_seconds, 3),
+                "failure": r.failure, "log": str(r.log_path),
+            }) + "\n")
+
+
 # -- command line
 
-def parse_args(argv: Sequence[str] | None) -> tuple[TrialSettings, bool]:
+def parse_args(argv: Sequence[str] | None) -> tuple[TrialSettings, argparse.Namespace]:
+    """The settings, and the options that are not settings of trials (--list, --results)."""
     parser = argparse.ArgumentParser(prog="signal_trials", description=__doc__.split("\n\n")[0])
     parser.add_argument("--trials", type=int, default=10, help="trials per scenario (default 10)")
+    parser.add_argument("--per-executable", action="store_true",
+                        help="--trials per executable, shared out among its scenarios")
+    parser.add_argument("--results", type=Path, default=None, help="write one JSON line per trial here")
     parser.add_argument("--max-delay", type=float, default=20.0, help="longest wait before the signal, s")
     parser.add_argument("--startup-share", type=float, default=0.3,
                         help="share of the trials signalled during the scenario's start-up (default 0.3)")
@@ -651,20 +695,21 @@ def parse_args(argv: Sequence[str] | None) -> tuple[TrialSettings, bool]:
     if args.trials < 1 or args.parallel < 1 or args.max_delay < 0 or not 0 <= args.load_share <= 1:
         parser.error("--trials and --parallel must be >= 1, --max-delay >= 0, --load-share within [0, 1]")
     settings = TrialSettings(
-        trials=args.trials, max_delay=args.max_delay, startup_share=args.startup_share, parallel=args.parallel,
+        trials=args.trials, per_executable=args.per_executable, max_delay=args.max_delay,
+        startup_share=args.startup_share, parallel=args.parallel,
         load_share=1.0 if args.load else args.load_share, seed=args.seed, exit_timeout=args.exit_timeout,
         only=tuple(name.strip() for name in args.only.split(",") if name.strip()),
     )
     if args.log_dir is not None:
         settings = replace(settings, log_dir=args.log_dir)
-    return settings, args.list
+    return settings, args
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings, list_only = parse_args(argv)
+    settings, options = parse_args(argv)
     try:
         chosen = selected(scenarios(), settings.only)
-        if list_only:
+        if options.list:
             print("\n".join(f"{s.name}: {s.target.package} {s.executable}" for s in chosen))
             return 0
         print(f"seed {settings.seed}, logs in {settings.log_dir}", flush=True)
@@ -676,6 +721,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("interrupted", file=sys.stderr)
         return 130
     print(table(results))
+    print(executable_table(results))
+    if options.results is not None:
+        write_results(results, options.results)
     return 1 if any(r.outcome == "failed" for r in results) else 0
 
 
