@@ -8,8 +8,7 @@ the body tells the world where its base will stand when the phase ends (`/sim/mo
 the world before it sets out, when the picking ends (did the tile slip?) and when the placing ends
 (is the tile now in place, or which support is absent?) over `/sim/place`.
 
-The action server appears once the world answers, so the robot's driver is ready (assembly_node's
-heartbeat) only when a placement can really be made. One goal at a time; a second is refused.
+One goal at a time: a second is refused, and so is one that comes while the world does not answer.
 """
 
 from __future__ import annotations
@@ -19,7 +18,6 @@ from typing import Any
 
 from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from tiling_assembly.polygons import convex_hull_2d
@@ -53,15 +51,8 @@ class SimRobot(Node):
         self.time = sim.SimTime(self)
         self.world = self.create_client(SimPlace, sim.PLACE)
         self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, sim.MOTION_QOS)
-        self.server: ActionServer | None = None
-        # on the wall clock: simulated time stands still until every node is up
-        self.waiting = self.create_timer(0.1, self.serve_once_the_world_answers,
-                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
-
-    def serve_once_the_world_answers(self) -> None:
-        if self.server is not None or not self.world.service_is_ready():
-            return
-        self.waiting.cancel()
+        # served from the start, so that the team's clients and this server have long discovered
+        # each other when the first goal comes (a goal response sent before is lost for good)
         self.server = ActionServer(
             self, PlaceTile, "place_tile", execute_callback=self.execute, goal_callback=self.accept,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
@@ -73,65 +64,72 @@ class SimRobot(Node):
         if self.busy:
             self.get_logger().warn(f"{self.name} is busy: refusing a second place_tile goal")
             return GoalResponse.REJECT
+        if not self.world.service_is_ready():
+            self.get_logger().warn(f"the world does not answer on {sim.PLACE} yet: refusing a place_tile goal")
+            return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
     async def execute(self, handle: Any) -> Result:
-        start = self.time.now
         self.busy = True
         try:
-            result = await self.place(handle)
+            result, start, end = await self.place(handle)
         finally:
             self.busy = False
-        result.duration = self.time.now - start
+        result.duration = end - start
         return result
 
-    async def place(self, handle: Any) -> Result:
-        """One placement, phase by phase; the result, with the goal's end status set."""
+    async def place(self, handle: Any) -> tuple[Result, float, float]:
+        """One placement, phase by phase: the result (with the goal's end status set), the simulated
+        times it started and ended.
+
+        Each phase starts at the tick the last one ended at, not when the world's answer about it
+        came back: the round trip to the world costs no simulated time, as when it was one process.
+        """
         goal: PlaceTile.Goal = handle.request
+        start = at = self.time.now
         answer = await self.ask(SimPlace.Request.STARTING, goal.tile_id)
         if answer.outcome == SimPlace.Response.ALREADY_PRESENT:
-            return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason)
+            return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason), start, at
         if answer.outcome != SimPlace.Response.OK:
-            return _finish(handle.abort, Result.FAILED_PRECONDITION, answer.reason)
+            return _finish(handle.abort, Result.FAILED_PRECONDITION, answer.reason), start, at
         tile_xy = (goal.pose.pose.position.x, goal.pose.pose.position.y)
         phases = placement_phases(self.motion, self.position, (goal.cache.x, goal.cache.y), tile_xy,
                                   self.footprints)
         for phase in phases:
             handle.publish_feedback(PlaceTile.Feedback(phase=phase.phase, phase_progress=0.0,
-                                                       robot_pose=self.pose_msg()))
-            arrive_at = self.time.now + phase.duration
-            self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=phase.end[0],
+                                                       robot_pose=self.pose_msg(at)))
+            self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=at + phase.duration, x=phase.end[0],
                                               y=phase.end[1], yaw=0.0))
-            await self.time.until(arrive_at)
+            at = await self.time.until(at + phase.duration)
             self.position = phase.end
             if handle.is_cancel_requested:
-                return _finish(handle.canceled, Result.CANCELED, "canceled")
+                return _finish(handle.canceled, Result.CANCELED, "canceled"), start, at
             if phase.phase == PlaceTile.Feedback.PICKING:
                 answer = await self.ask(SimPlace.Request.PICKED, goal.tile_id)
                 if answer.outcome == SimPlace.Response.DROPPED:
-                    return _finish(handle.abort, Result.FAILED_GRASP, answer.reason)
+                    return _finish(handle.abort, Result.FAILED_GRASP, answer.reason), start, at
             if phase.phase == PlaceTile.Feedback.PLACING:
                 answer = await self.ask(SimPlace.Request.PLACING, goal.tile_id)
                 if answer.outcome == SimPlace.Response.ALREADY_PRESENT:
-                    return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason)
+                    return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason), start, at
                 if answer.outcome != SimPlace.Response.OK:
                     result = _finish(handle.abort, Result.FAILED_PRECONDITION, answer.reason)
                     result.missing_supports = list(answer.absent_supports)
-                    return result
+                    return result, start, at
         result = _finish(handle.succeed, Result.SUCCEEDED, "")
         result.placed_pose = goal.pose
-        return result
+        return result, start, at
 
     async def ask(self, step: int, tile_id: int) -> SimPlace.Response:
         """The world's answer to one step of a placement."""
         return await self.world.call_async(SimPlace.Request(robot=self.name, tile_id=tile_id, step=step))
 
-    def pose_msg(self) -> PoseStamped:
-        """Where the base is: the body knows its own pose exactly (the overhead cameras' view, with its
-        errors, is the world's)."""
+    def pose_msg(self, at: float) -> PoseStamped:
+        """Where the base is at `at` (s): the body knows its own pose exactly (the overhead cameras'
+        view, with its errors, is the world's)."""
         pose = PoseStamped()
         pose.header.frame_id = "map"
-        pose.header.stamp = self.time.stamp()
+        pose.header.stamp = sim.stamp_of(at)
         pose.pose.position.x, pose.pose.position.y = self.position
         pose.pose.orientation.w = 1.0
         return pose

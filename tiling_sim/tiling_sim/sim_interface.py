@@ -5,7 +5,7 @@ Real robots never use it; it stands for the physics the real robots would meet. 
 
 | name | type | from -> to | QoS |
 |---|---|---|---|
-| `/clock` | rosgraph_msgs/Clock | world -> all | reliable, depth 10 (read best effort, depth 1) |
+| `/clock` | rosgraph_msgs/Clock | world -> all | reliable, depth 10 |
 | `/sim/place` | SimPlace.srv | `sim_robot` -> world | service: each placement step, atomically |
 | `/sim/snapshot` | SimSnapshot.srv | `sim_vi` -> world | service: tiles, robots, stamp; may hold the clock |
 | `/sim/motion` | SimMotion.msg | bodies -> world | reliable, depth 100: where a base stands from when |
@@ -38,7 +38,7 @@ EVENTS = "/sim/events"
 START = "/sim/start"
 
 CLOCK_OUT = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-CLOCK_IN = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)  # as rclpy's own time source
+CLOCK_IN = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)  # every tick, in order (SimTime)
 MOTION_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 SCAN_PROGRESS_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE)
 EVENTS_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -68,8 +68,13 @@ def stamp_of(seconds: float) -> Any:
 
 
 class SimTime:
-    """Simulated time as `/clock` tells a body, and alarms on it. The node's other callbacks run on
-    the same executor, so alarms wake them in the order they are due."""
+    """Simulated time as `/clock` tells a body, and alarms on it.
+
+    Every tick is read, in order (reliable, a queue of 10): an alarm wakes at the first tick at or
+    after its time, also when the body's process runs late, and its future holds that tick's time.
+    A body that starts its next phase from that time, not from the latest tick it has heard of,
+    keeps the timeline the world had when it was one process, however long messages take.
+    """
 
     def __init__(self, node: Node, on_tick: Callable[[], None] | None = None) -> None:
         self.now = 0.0  # s, the latest /clock
@@ -85,10 +90,7 @@ class SimTime:
             self._on_tick()
 
     def until(self, at: float) -> Future:
-        """A future done once simulated time reaches `at` (s)."""
+        """A future done once simulated time reaches `at` (s); its result: the time it woke at."""
         future = Future()
-        self._alarms.set(at, lambda: future.done() or future.set_result(True))
+        self._alarms.set(at, lambda: future.done() or future.set_result(self.now))
         return future
-
-    def stamp(self) -> Any:
-        return stamp_of(self.now)

@@ -21,8 +21,7 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
-from rclpy.action import ActionServer, CancelResponse
-from rclpy.clock import Clock, ClockType
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2, PointField
@@ -76,19 +75,17 @@ class SimVi(Node):
         self.progress_pub = self.create_publisher(SimScanProgress, sim.SCAN_PROGRESS, sim.SCAN_PROGRESS_QOS)
         self.cloud_pub = self.create_publisher(PointCloud2, "camera/depth/points", CAMERA)
         self.create_subscription(TileStateArray, "/tile_states", self.on_verdict, 10)
-        self.server: ActionServer | None = None
-        # on the wall clock: simulated time stands still until every node is up
-        self.waiting = self.create_timer(0.1, self.serve_once_the_world_answers,
-                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
-
-    def serve_once_the_world_answers(self) -> None:
-        if self.server is not None or not self.world.service_is_ready():
-            return
-        self.waiting.cancel()
+        # served from the start: the explorer's client and this server discover each other early
         self.server = ActionServer(self, NavigateTo, "navigate_to", execute_callback=self.navigate,
-                                   cancel_callback=lambda _handle: CancelResponse.ACCEPT)
+                                   goal_callback=self.accept, cancel_callback=lambda _handle: CancelResponse.ACCEPT)
         self.get_logger().info(f"serving {self.resolve_topic_name('navigate_to')} and the Kinect on "
                                f"{self.resolve_topic_name('camera/depth/points')}")
+
+    def accept(self, _goal: NavigateTo.Goal) -> GoalResponse:
+        if not self.world.service_is_ready():
+            self.get_logger().warn(f"the world does not answer on {sim.SNAPSHOT} yet: refusing a navigate_to goal")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
 
     # --- the base -----------------------------------------------------------------------------
     async def navigate(self, handle: Any) -> NavigateTo.Result:
@@ -99,24 +96,25 @@ class SimVi(Node):
         with self.lock:
             self.cycle.departed()
         feedback = NavigateTo.Feedback(distance_remaining=float(math.dist(self.pose[:2], goal[:2])))
-        feedback.current_pose = self.pose_msg()
+        feedback.current_pose = self.pose_msg(self.time.now)
         handle.publish_feedback(feedback)
         arrive_at = self.time.now + drive_time_to_pose(self.motion, self.pose, goal)
         self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=goal[0], y=goal[1], yaw=goal[2]))
-        await self.time.until(arrive_at)
+        arrived = await self.time.until(arrive_at)
         self.pose = goal
         with self.lock:
-            self.cycle.arrived(self.time.now)  # the base settles, then the frame the explorer waits for
+            self.cycle.arrived(arrived)  # the base settles, then the frame the explorer waits for
         result = NavigateTo.Result(success=True)
-        result.final_pose = self.pose_msg()  # stamped with the time of arrival
+        result.final_pose = self.pose_msg(arrived)  # stamped with the time of arrival
         handle.succeed()
         return result
 
-    def pose_msg(self) -> PoseStamped:
-        """Where the base is (the body knows its own pose exactly; the overhead view is the world's)."""
+    def pose_msg(self, at: float) -> PoseStamped:
+        """Where the base is at `at` (s): the body knows its own pose exactly (the overhead view is
+        the world's)."""
         pose = PoseStamped()
         pose.header.frame_id = "map"
-        pose.header.stamp = self.time.stamp()
+        pose.header.stamp = sim.stamp_of(at)
         pose.pose.position.x, pose.pose.position.y = self.pose[0], self.pose[1]
         o = pose.pose.orientation
         o.x, o.y, o.z, o.w = quaternion_from_rotation(rotation_from_rpy(0.0, 0.0, self.pose[2]))
@@ -125,7 +123,7 @@ class SimVi(Node):
     # --- the Kinect ---------------------------------------------------------------------------
     def tick(self) -> None:
         """A new simulated time: give up a frame that waited too long, or take the next one."""
-        if self.server is None:
+        if not self.world.service_is_ready():
             return  # the world does not answer yet
         with self.lock:
             overdue = self.cycle.overdue(time.monotonic())
