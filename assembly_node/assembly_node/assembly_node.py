@@ -48,6 +48,12 @@ from tiling_assembly_msgs.msg import (
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+# Read best effort, though sent reliably: a reliable reader holds every later sample back until DDS
+# repairs a lost one (at the writer's next heartbeat, seconds by default), so over a lossy link one
+# lost heartbeat made a robot look dead. A lost heartbeat is replaced by the next; a lost auction
+# message by its next copy (the sender repeats it until answered).
+HEARTBEATS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+REPEATED = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 STATE_NAMES = {v: k for k, v in vars(RobotStatus).items() if k.isupper() and isinstance(v, int)}
 
@@ -95,9 +101,9 @@ class AssemblyNode(Node):
         self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
         self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
         self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
-        self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
-        self.create_subscription(AuctionAward, "/auction/awards", self.on_award, COORDINATION)
-        self.create_subscription(AuctioneerStatus, "/auction/status", self.on_auctioneer_status, COORDINATION)
+        self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, REPEATED)
+        self.create_subscription(AuctionAward, "/auction/awards", self.on_award, REPEATED)
+        self.create_subscription(AuctioneerStatus, "/auction/status", self.on_auctioneer_status, HEARTBEATS)
         self.place_client = ActionClient(self, PlaceTile, "place_tile")
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)

@@ -56,6 +56,12 @@ from tiling_assembly_msgs.srv import Replan
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+# Read best effort, though sent reliably: a reliable reader holds every later sample back until DDS
+# repairs a lost one (at the writer's next heartbeat, seconds by default), so over a lossy link one
+# lost heartbeat made a robot look dead. A lost heartbeat is replaced by the next; a lost auction
+# message by its next copy (the sender repeats it until answered).
+HEARTBEATS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+REPEATED = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
 DECISIONS = QoSProfile(depth=200, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
 SENSING = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING}  # anything else: undetermined
@@ -116,9 +122,9 @@ class AuctionNode(Node):
         self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
         self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
         self.create_subscription(TileStateArray, "/tile_states", self.on_tile_states, COORDINATION)
-        self.create_subscription(AuctionBid, "/auction/bids", self.on_bid, COORDINATION)
-        self.create_subscription(AuctionAcceptance, "/auction/acceptances", self.on_acceptance, COORDINATION)
-        self.create_subscription(RobotStatus, "/robot_status", self.on_status, COORDINATION)
+        self.create_subscription(AuctionBid, "/auction/bids", self.on_bid, REPEATED)
+        self.create_subscription(AuctionAcceptance, "/auction/acceptances", self.on_acceptance, REPEATED)
+        self.create_subscription(RobotStatus, "/robot_status", self.on_status, HEARTBEATS)
         self.replan_client = self.create_client(Replan, "/replan")
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(0.02, self.tick, clock=steady)

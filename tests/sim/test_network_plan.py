@@ -11,10 +11,10 @@ ROBOTS = ["robot1", "robot2"]
 
 def test_every_process_runs_on_its_computer() -> None:
     hosts = {p: host_of(p, ROBOTS) for p in ("planner_node", "auction_node", "sim_world", "robot1", "robot1_body",
-                                             "robot2", "robot2_body", "vi_node", "vi_explorer", "vi_body")}
+                                             "robot2", "robot2_body", "vi_node", "vi_explorer", "sim_vi")}
     assert hosts == {"planner_node": "base", "auction_node": "base", "sim_world": "world", "robot1": "robot1",
                      "robot1_body": "robot1", "robot2": "robot2", "robot2_body": "robot2", "vi_node": "vi",
-                     "vi_explorer": "vi", "vi_body": "vi"}
+                     "vi_explorer": "vi", "sim_vi": "vi"}
     with pytest.raises(ValueError, match="no host for process robot3"):
         host_of("robot3", ROBOTS)
 

@@ -34,9 +34,12 @@ from tiling_assembly.structure_file import load_structure
 from tiling_assembly.team import TeamFileError, TeamNode, TeamRole, load_team
 from tiling_assembly.time_model import TimeModel
 from tiling_sim.experiment_observer import ExperimentObserver
+from tiling_sim.network_plan import DEFAULT_NETNS_TIME_FACTOR, NetworkSettings, Outage
 from tiling_sim.process_group import ProcessGroup
 from tiling_sim.ros_domain import claim_domain_id, isolate
+from tiling_sim.team_network import TeamNetwork
 from tiling_sim.trial_record import DetectionStats, TrialRecord, detection_stats
+from tiling_sim.virtual_hosts import VirtualHostsError
 
 HEAVY_NODES = {"sim_vi", "vi_node", "vi_explorer"}  # ray casting, point clouds (the world is light: the clock)
 
@@ -60,6 +63,7 @@ class ExperimentConfig:
     wall_limit: float = 0.0  # s per trial; 0: derived from the structure
     quiet: bool = False
     inspection: bool = True  # run the VI robot's nodes (inspection and exploration)
+    network: NetworkSettings = field(default_factory=NetworkSettings)  # one host, or a host per computer
 
     @property
     def robot_names(self) -> list[str]:
@@ -79,6 +83,7 @@ class ExperimentResult:
     config: ExperimentConfig
     structure: Structure
     records: list[TrialRecord] = field(default_factory=list)
+    link_counters: dict[str, dict[str, int]] = field(default_factory=dict)  # robot -> its link's counters
 
     def fault_trials(self) -> list[TrialRecord]:
         return [r for r in self.records if r.trial > 0]
@@ -127,8 +132,9 @@ def removals_per_trial(total: int, trials: int, seed: int) -> list[int]:
 
 
 class Experiment:
-    def __init__(self, config: ExperimentConfig) -> None:
+    def __init__(self, config: ExperimentConfig, network: TeamNetwork | None = None) -> None:
         self.config = config
+        self.network = network or TeamNetwork(config.network, config.robot_names)
         self.structure = load_structure(config.structure_file)
         model = TimeModel()
         self.estimated_makespan = model.workload(self.structure, self.structure.tile_ids) / config.robots
@@ -228,7 +234,8 @@ class Experiment:
             env = dict(os.environ, TILING_EXPERIMENT_RUN=self.run_id)
             for name, argv in self.node_commands(setup).items():
                 # perception is throughput work: let coordination (auctions, robots) run first
-                group.start(name, argv, env, nice=10 if name in HEAVY_NODES else 0)
+                group.start(name, self.network.command(name, argv), self.network.environment(name, env),
+                            nice=10 if name in HEAVY_NODES else 0)
             wall_start = time.monotonic()
             started_wall = None
             killed = False
@@ -250,10 +257,12 @@ class Experiment:
                         break
                     continue
                 now = observer.now()
+                record.link_changes += self.network.follow_outages(now)
                 placed = sum(1 for e in record.events if e.kind == "placed")
                 removed = sum(1 for e in record.events if e.kind == "removed")
+                out = f", link out: {', '.join(sorted(self.network.out))}" if self.network.out else ""
                 self.show(f"{progress} t={now:6.0f} s simulated, {placed} placements, {removed} removals, "
-                          f"{len(record.announcements)} auctions")
+                          f"{len(record.announcements)} auctions{out}")
                 if (self.config.kill_robot and not killed
                         and sum(1 for e in record.events if e.kind == "placed") >= self.config.kill_after_placements):
                     group.kill(self.config.kill_robot)
@@ -266,6 +275,7 @@ class Experiment:
             executor.remove_node(observer)
             observer.destroy_node()
             record.unclean_exits = group.stop()
+            self.network.restore_links()
         for name, code in record.unclean_exits.items():
             print(f"warning: trial {setup.trial}: {name} did not stop cleanly (exit code {code}); see "
                   f"{logs / (name + '.log')}", file=sys.stderr, flush=True)
@@ -291,6 +301,7 @@ class Experiment:
             if not c.quiet:
                 print(f"\r{progress} {trial_summary(record)} ({time.monotonic() - wall:.0f} s wall)".ljust(110),
                       flush=True)
+        result.link_counters = self.network.counters()
         return result
 
 
@@ -319,7 +330,8 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser.add_argument("--trials", type=int, default=14, help="trials with faults (default 14)")
     parser.add_argument("--removals", type=int, default=22, help="tiles removed over all trials (default 22)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the whole experiment (default 1)")
-    parser.add_argument("--real-time-factor", type=float, default=20.0, help="simulated / wall time")
+    parser.add_argument("--real-time-factor", type=float, default=None,
+                        help=f"simulated / wall time (default 20; {DEFAULT_NETNS_TIME_FACTOR:g} with --hosts netns)")
     parser.add_argument("--drop-probability", type=float, default=0.0, help="chance a tile slips when placed")
     parser.add_argument("--report", default=None, help="report folder (default reports/<structure>)")
     parser.add_argument("--config", default="config", help="folder of the nodes' parameter files")
@@ -330,15 +342,32 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser.add_argument("--inspection-only", action="store_true",
                         help="only scans find missing tiles, as in the paper (robots do not report absent supports)")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
+    parser.add_argument("--hosts", choices=["netns"], default="",
+                        help="netns: every robot, the base station and the world on a host of its own (needs root)")
+    parser.add_argument("--link-loss", type=float, default=0.0, metavar="PCT",
+                        help="robots' links drop PCT%% of frames")
+    parser.add_argument("--link-rate", type=float, default=None, metavar="MBIT", help="robots' links carry MBIT Mbit/s")
+    parser.add_argument("--link-delay", type=float, default=0.0, metavar="MS", help="robots' links delay frames MS ms")
+    parser.add_argument("--link-outage", action="append", default=[], metavar="ROBOT:AT:SECONDS",
+                        help="cut ROBOT's link at AT s of simulated time for SECONDS (repeatable)")
     args = parser.parse_args(argv)
     structure = Path(args.structure)
-    if args.robots < 1 or args.trials < 0 or args.removals < 0 or args.real_time_factor <= 0:
+    time_factor = args.real_time_factor or (DEFAULT_NETNS_TIME_FACTOR if args.hosts else 20.0)
+    if args.robots < 1 or args.trials < 0 or args.removals < 0 or time_factor <= 0:
         parser.error("--robots must be >= 1, --trials and --removals >= 0, --real-time-factor > 0")
     if not Path(args.config).is_dir():
         parser.error(f"--config {args.config}: no such folder of parameter files")
+    robots = [f"robot{k + 1}" for k in range(args.robots)]
+    try:
+        network = NetworkSettings(args.hosts, args.link_loss, args.link_rate, args.link_delay,
+                                  tuple(Outage.parse(text) for text in args.link_outage))
+        network.check(robots)
+        TeamNetwork.link_shape(network)  # checks the link's numbers
+    except ValueError as error:
+        parser.error(str(error))
     return ExperimentConfig(
         structure_file=structure.resolve(), robots=args.robots, trials=args.trials, removals=args.removals,
-        seed=args.seed, real_time_factor=args.real_time_factor,
+        seed=args.seed, real_time_factor=time_factor, network=network,
         report_dir=Path(args.report or f"reports/{structure.stem}"), config_dir=Path(args.config).resolve(),
         baseline=not args.no_baseline, drop_probability=args.drop_probability, kill_robot=args.kill_robot,
         silent_robot=args.silent_robot, quiet=args.quiet, inspection=not args.no_inspection,
@@ -353,14 +382,19 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     domain, _lock = claim_domain_id()
     isolate(domain)
-    rclpy.init(args=None)
+    network = None
     try:
-        experiment = Experiment(config)
+        network = TeamNetwork.build(config.network, config.robot_names, f"{os.getpid()}",
+                                    dds_profile=str(config.config_dir / "fastdds_wifi.xml"))
+        rclpy.init(args=None)
+        experiment = Experiment(config, network)
         config.report_dir.mkdir(parents=True, exist_ok=True)
         print(report.header(config, experiment.structure), flush=True)
-        if not config.quiet:
+        if not config.quiet and network.hosts is None:
             print(f"ROS_DOMAIN_ID={domain} (private, this host only); watch with: ROS_DOMAIN_ID={domain} "
                   "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ros2 topic echo /auction/decisions", flush=True)
+        elif not config.quiet:
+            print(network.describe(), flush=True)
         result = experiment.run()
         print(report.summary_text(result), flush=True)
         path = report.write(result)
@@ -368,6 +402,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0 if all(r.complete() for r in result.records) else 1
     except StructureError as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except VirtualHostsError as error:
+        print(f"error: --hosts netns: {error}", file=sys.stderr)
         return 2
     except RuntimeError as error:
         print(f"error: {error}", file=sys.stderr)
@@ -377,6 +414,8 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     finally:
         rclpy.try_shutdown()
+        if network is not None:
+            network.close()
 
 
 if __name__ == "__main__":

@@ -84,7 +84,7 @@ def host_of(process: str, robots: list[str]) -> str:
         return "base"
     if process == "sim_world":
         return "world"
-    if process in ("vi_node", "vi_explorer", "vi_body"):
+    if process in ("vi_node", "vi_explorer", "sim_vi"):
         return "vi"
     robot = process.removesuffix("_body")
     if robot in robots:

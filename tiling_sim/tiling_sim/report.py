@@ -162,9 +162,25 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
     if copies:
         lines.append("Auction messages sent again (unanswered over the link): "
                      + ", ".join(f"{n} {topic}" for topic, n in sorted(copies.items())))
+    lines += network_lines(result)
     duplicates = sum(len(duplicate_placements(r)) for r in result.records)
     lost = sum(len(lost_placements(r)) for r in result.records)
     lines.append(f"Tiles placed twice (or carried to a place already taken): {duplicates}; tiles lost: {lost}")
+    return lines
+
+
+def network_lines(result: ExperimentResult) -> list[str]:
+    settings = result.config.network
+    if not settings.separate_hosts:
+        return []
+    rate = f"{settings.rate_mbit:g} Mbit/s" if settings.rate_mbit is not None else "no rate limit"
+    outages = ", ".join(f"{o.host} at {o.at:g} s for {o.duration:g} s" for o in settings.outages) or "none"
+    lines = [f"Network: a host per computer; robots' links {settings.loss_percent:g}% loss, {rate}, "
+             f"{settings.delay_ms:g} ms delay; outages: {outages}; {result.config.real_time_factor:g}x real time"]
+    for robot, c in sorted(result.link_counters.items()):
+        lines.append(f"  {robot}'s link: {c['sent_packets']} frames sent, {c['received_packets']} received, "
+                     f"{c['lost_sent'] + c['lost_received']} lost at random, {c['outage_dropped']} in outages, "
+                     f"{c['queue_dropped']} by the rate limit")
     return lines
 
 
@@ -322,6 +338,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "award_latency_p95": percentile(record.award_latencies, 95),
             "messages_resent": record.copies,
             "duplicate_placements": duplicate_placements(record), "lost_placements": lost_placements(record),
+            "link_changes": [{"t": round(c.t, 2), "robot": c.host, "up": c.up} for c in record.link_changes],
             "scans_judged": len(record.verdicts), "scans_without_states": sum(1 for v in record.verdicts if v.problem),
             "scans_not_in_view": sum(1 for v in record.verdicts if "S_a not in view" in v.problem),
             "scan_verdict_delays": [round(v.wall_delay, 4) for v in record.verdicts],
@@ -338,4 +355,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "false_missing_calls": false_missing_calls(record),
             "decisions": record.decisions,
         })
-    return {"structure": result.structure.name, "robots": result.config.robot_names, "trials": trials}
+    return {"structure": result.structure.name, "robots": result.config.robot_names,
+            "network": {**result.config.network.as_dict(), "real_time_factor": result.config.real_time_factor,
+                        "link_counters": result.link_counters},
+            "trials": trials}

@@ -107,6 +107,7 @@ class TrialRecord:
     unclean_exits: dict[str, int] = field(default_factory=dict)  # node -> exit code when stopped
     final_states: dict[int, str] = field(default_factory=dict)
     copies: dict[str, int] = field(default_factory=dict)  # topic -> messages heard again (re-sent)
+    link_changes: list = field(default_factory=list)  # team_network.LinkChange: outages applied
 
     # --- truth -------------------------------------------------------------------------------
     def presence_intervals(self) -> dict[int, list[tuple[float, float]]]:
