@@ -16,14 +16,16 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import time
 from typing import Any
 
 import rclpy
 from geometry_msgs.msg import PoseStamped, Twist
 from rclpy.action import ActionClient
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.signals import SignalHandlerOptions
 
 from tiling_assembly_msgs.action import NavigateTo
 
@@ -70,8 +72,12 @@ class Navigating(Node):
         handle.get_result_async().add_done_callback(lambda _: setattr(self, "busy", False))
 
 
-def raise_keyboard_interrupt(signum: int, frame: Any) -> None:
-    raise KeyboardInterrupt
+def drain(executor: SingleThreadedExecutor, seconds: float = 1.0) -> None:
+    """Take what has arrived before the stop was asked for: the robot's last cmd_vel may still wait
+    in the queue on a loaded machine."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -79,16 +85,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--namespace", default="/robot1", help="the navigator's namespace")
     parser.add_argument("--distance", type=float, default=3.0, help="m between the two goals")
     args = parser.parse_args(argv)
-    signal.signal(signal.SIGTERM, raise_keyboard_interrupt)
-    rclpy.init(args=["keep_navigating", "--ros-args", "-r", f"__ns:={args.namespace}"])
-    node = Navigating(args.distance)
+    rclpy.init(args=["keep_navigating", "--ros-args", "-r", f"__ns:={args.namespace}"],
+               signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # both signals: KeyboardInterrupt
+    executor = SingleThreadedExecutor()
+    node: Navigating | None = None
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        node = Navigating(args.distance)
+        executor.add_node(node)
+        executor.spin()
+    except KeyboardInterrupt:
+        drain(executor)
     finally:
-        print(f"last cmd_vel: {node.last_command} ({node.goals_sent} goals sent)", flush=True)
-        node.destroy_node()
+        if node is not None:  # else stopped before it started: nothing to tell
+            print(f"last cmd_vel: {node.last_command} ({node.goals_sent} goals sent)", flush=True)
+            node.destroy_node()
+        executor.shutdown()
         rclpy.try_shutdown()
     return 0
 

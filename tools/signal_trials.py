@@ -7,17 +7,23 @@ waits for its port or the assembly node for /plan, in the middle of a callback. 
 the same without launch: it starts a node's executable as `ros2 run` would (the installed
 `lib/<package>/<executable>`, with the environment of the workspace), waits a random delay, sends
 SIGINT or SIGTERM to that pid alone and waits for the exit. A trial fails when the process exits
-with a code other than 0, prints a traceback or "terminate called", leaves processes behind, or
-is still running `exit_timeout` seconds after the signal.
+with a code other than 0, prints a traceback, "terminate called" or other shutdown noise, leaves
+processes behind, or is still running `exit_timeout` seconds after the signal (its Python stacks
+are then dumped into its log). A failure is "too early" rather than failed when the process had
+no SIGTERM handler of its own yet: the interpreter and the script setuptools generates were still
+starting (~50-300 ms), before any code of this project can catch a signal.
 
-    tools/workspace-env python tools/signal_trials.py [--trials N] [--max-delay S] [--parallel K]
-        [--load | --load-share F] [--only NAME[,NAME...]] [--seed N] [--log-dir DIR] [--list]
+    tools/workspace-env python tools/signal_trials.py [--trials N [--per-executable]] [--max-delay S]
+        [--startup-share F] [--parallel K] [--load | --load-share F] [--only NAME[,NAME...]]
+        [--seed N] [--log-dir DIR] [--results FILE] [--list]
 
 Every trial runs in a private ROS domain on this host (tiling_sim.ros_domain). Device emulators
 on pseudo-terminals stand in for the robots' hardware; a recorded bag replayed in a loop keeps
-vi_node inspecting. `--load` runs every trial with one busy-loop process per core; `--load-share`
-runs that share of each scenario's trials so, after the others. No ROS import here: the harness
-only starts processes and reads their logs.
+vi_node inspecting; tools/keep_navigating.py keeps the base navigator driving; a simulated
+one-robot team keeps the assembly node, its body and the world building. `--load` runs every
+trial with one busy-loop process per core; `--load-share` runs that share of each scenario's
+trials so, after the others. No ROS import here: the harness only starts processes and reads
+their logs.
 """
 
 from __future__ import annotations
@@ -155,8 +161,8 @@ def scenarios() -> list[Scenario]:
         Scenario("crustcrawler_arm (no device)", driver("crustcrawler_arm", missing_port, *ARM)),
         Scenario("hokuyo_urg", driver("hokuyo_urg", f"{TRIAL_DIR}/urg"), helpers=(emulator("urg"),)),
         Scenario("hokuyo_urg (no device)", driver("hokuyo_urg", missing_port)),
-        Scenario("m3_robot", node("hardware_drivers", "m3_robot", "-r", "__ns:=/robot1",
-                                  *params_file("hardware_drivers"), *ARM, "-p", STRUCTURE_PARAMETER)),
+        Scenario("m3_robot", m3_robot()),
+        Scenario("m3_robot (placing)", m3_robot(*FAST_M3), helpers=m3_robot_body(), startup_span=6.0),
         Scenario("base_navigator", node("hardware_drivers", "base_navigator", "-r", "__ns:=/vi",
                                         *params_file("hardware_drivers"))),
         Scenario("base_navigator (driving)", node("hardware_drivers", "base_navigator", "-r", "__ns:=/robot1",
@@ -209,6 +215,33 @@ def sim_robot() -> Command:
 def sim_vi() -> Command:
     return node("tiling_sim", "sim_vi", "-r", "__ns:=/vi", *params_file("vi_node"), *params_file("tiling_sim"),
                 *BUILDING_TEAM, *SIM_TIME)
+
+
+def m3_robot(*arguments: str) -> Command:
+    return node("hardware_drivers", "m3_robot", "-r", "__ns:=/robot1", *params_file("hardware_drivers"), *ARM,
+                "-p", STRUCTURE_PARAMETER, *arguments)
+
+
+# as tests/drivers/test_m3_robot.py: quicker servos and base than the real robot's, a tile at the cache
+FAST_SERVOS = ("-p", "joint_max_velocities:=[3.0,3.0,3.0,3.0,3.0,3.0]")
+FAST_M3 = (*FAST_SERVOS, "-p", "arm_speed:=2.5", "-p", "max_linear:=0.3", "-p", "max_angular:=1.5",
+           "-p", "laser_mount:=[0.16,0.0,0.0]")
+
+
+def m3_robot_body() -> tuple[Helper, ...]:
+    """The M3 robot's devices (emulated), their drivers, and tools/keep_placing.py sending missions."""
+    pose_file = f"{TRIAL_DIR}/true_pose"
+    return (
+        emulator("create", "--pose-file", pose_file, "--start-pose", "0.0,-0.45,0.3"),
+        emulator("dynamixel", "--stall", "6:473"),  # the gripper servo stops on a 4 cm tile
+        emulator("urg", "--robot-pose-file", pose_file, "--laser-mount", "0.16,0.0,0.0",
+                 "--tile-pose", "0.02,-1.01,0.4"),
+        Helper("create_base", driver("create_base", f"{TRIAL_DIR}/create")),
+        Helper("crustcrawler_arm", driver("crustcrawler_arm", f"{TRIAL_DIR}/dynamixel", *ARM, *FAST_SERVOS)),
+        Helper("hokuyo_urg", driver("hokuyo_urg", f"{TRIAL_DIR}/urg")),
+        Helper("keep_placing", Command("", "tools/keep_placing.py", ("--pose-file", pose_file)),
+               forbidden_after_stop="last cmd_vel: moving"),
+    )
 
 
 def team_helpers(*members: str) -> tuple[Helper, ...]:

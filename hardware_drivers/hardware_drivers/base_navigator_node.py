@@ -25,7 +25,7 @@ from std_msgs.msg import Bool
 from hardware_drivers.base_navigation import GoToPose, GoToPoseParams
 from hardware_drivers.goal_slot import GoalSlot
 from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
-from hardware_drivers.node_support import declare, positive, require, run_node
+from hardware_drivers.node_support import declare, positive, publish_last, require, run_node
 from hardware_drivers.planar_pose import Pose2D
 from tiling_assembly_msgs.action import NavigateTo
 
@@ -142,7 +142,7 @@ class BaseNavigatorNode(Node):
 def main() -> int:
     return run_node(BaseNavigatorNode, executor=lambda: MultiThreadedExecutor(num_threads=3),
                     on_stop=lambda node: node.stopping.set(),
-                    on_shutdown=lambda node: node.cmd_vel.publish(Twist()) if node.context.ok() else None)
+                    on_shutdown=lambda node: publish_last(node.cmd_vel, Twist()) if node.context.ok() else None)
 
 
 if __name__ == "__main__":

@@ -55,6 +55,7 @@ from hardware_drivers.node_support import (
     declare,
     floats,
     positive,
+    publish_last,
     require,
     run_node,
 )
@@ -480,7 +481,7 @@ class _GoalHardware:
 def main() -> int:
     return run_node(M3RobotNode, executor=lambda: MultiThreadedExecutor(num_threads=4),
                     on_stop=lambda node: node.stopping.set(),
-                    on_shutdown=lambda node: node.stop() if node.context.ok() else None)
+                    on_shutdown=lambda node: publish_last(node.cmd_vel, Twist()) if node.context.ok() else None)
 
 
 if __name__ == "__main__":

@@ -12,8 +12,10 @@ from typing import Any, TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from hardware_drivers.device_health import HealthReport, Level
@@ -107,6 +109,14 @@ class DiagnosticsReporter:
         array.header.stamp = self.node.get_clock().now().to_msg()
         array.status = [diagnostic_status(report, self.name, self.hardware_id)]
         self.publisher.publish(array)
+
+
+def publish_last(publisher: Publisher, message: Any, timeout: float = 1.0) -> None:
+    """Publish a node's last word (the zero Twist that stops the wheels) and wait up to `timeout`
+    s until every subscriber has acknowledged it: a publisher destroyed right after publishing can
+    take an unacknowledged message with it, and the wheels would roll on until the base's watchdog."""
+    publisher.publish(message)
+    publisher.wait_for_all_acked(Duration(seconds=timeout))
 
 
 def run_node(make_node: Callable[[], NodeT], executor: Callable[[], Executor] = SingleThreadedExecutor,
