@@ -33,7 +33,6 @@ from tiling_assembly.interrupts import (
     raise_if_signalled,
     raise_keyboard_interrupt_on_signals,
     recorded_signals,
-    signalled,
 )
 
 NodeT = TypeVar("NodeT", bound=Node)
@@ -69,11 +68,7 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
         try:
             with postponed_signals():
                 node = make_node()
-        except Exception as error:
-            if signalled.is_set():
-                # the signal broke what it interrupted on its way out: an import of a C extension
-                # turns the KeyboardInterrupt into another error ("ImportError: initialization failed")
-                return 0
+        except Exception as error:  # a signal meanwhile came out as KeyboardInterrupt instead
             if not isinstance(error, startup_errors):
                 raise
             print(f"{error_prefix}: {error}", file=sys.stderr)
