@@ -11,7 +11,8 @@ status reply) and reads every joint's goal registers and state block (position, 
 voltage, temperature, moving) with the error byte of its status packet. A goal a servo does not
 hold was lost on the bus: it is written again, acknowledged, a bounded number of times. Joint
 errors (overload, overheating, input voltage...) are reported when they appear and when they
-clear; a joint counts as not answering after ``joint_silent_timeout`` without a reply.
+clear; a joint counts as not answering after ``joint_silent_reads`` reads in a row and
+``joint_silent_timeout`` without a reply.
 
 Joint angles are the arm's (rad, see ``arm_kinematics``); each joint maps to its servo through
 ``servo_angle = direction * joint_angle + offset``.
@@ -78,9 +79,11 @@ class ArmConfig:
     retries: int = 3  # attempts per transaction
     retry_interval: float = 0.5  # s between reconnect attempts
     silent_timeout: float = 1.0  # s without any servo answering before the bus counts as lost
-    # s without a reply before one joint counts as not answering: a single missed read (a busy
-    # host, noise on the bus) is retried next cycle, not a fault that ends a mission
-    joint_silent_timeout: float = 0.5
+    # a joint counts as not answering after this many reads in a row and this long without a reply:
+    # a missed read (a busy host, noise on the bus) is tried again next cycle, not a fault that ends
+    # a mission; the count matters when unanswered reads stretch the cycles on a slow host
+    joint_silent_reads: int = 3
+    joint_silent_timeout: float = 0.5  # s
     goal_resends: int = 3  # re-sends of a goal a servo did not take, before reporting it
     goal_tolerance: float = 0.02  # rad
 
@@ -100,6 +103,8 @@ class ArmConfig:
                 problems.append(f"{name} must be positive, got {value}")
         if self.retries < 1:
             problems.append(f"retries must be at least 1, got {self.retries}")
+        if self.joint_silent_reads < 1:
+            problems.append(f"joint_silent_reads must be at least 1, got {self.joint_silent_reads}")
         if self.goal_resends < 0:
             problems.append(f"goal_resends must not be negative, got {self.goal_resends}")
         if problems:
@@ -219,6 +224,7 @@ class ArmDriver(SupervisedDevice):
         self._unconfigured: set[str] = set()  # joints not configured in this session yet
         self._configure_failing: dict[str, float] = {}  # name -> time of its first failed configuration
         self._last_answer: dict[str, float] = {}
+        self._missed_reads: dict[str, int] = {}  # unanswered reads in a row per joint
         self.health.set_value("port", config.port)
         self.health.set_value("joints", ", ".join(f"{j.name}={j.servo_id}" for j in config.joints))
 
@@ -316,6 +322,7 @@ class ArmDriver(SupervisedDevice):
         self._unconfigured = {j.name for j in self.config.joints}
         self._configure_failing.clear()
         self._last_answer = {j.name: start for j in answering}
+        self._missed_reads = {j.name: 0 for j in answering}
         for joint in answering:
             self._configure(bus, joint)
         self._connected(
@@ -439,9 +446,11 @@ class ArmDriver(SupervisedDevice):
             try:
                 reply = bus.read(joint.servo_id, dx.JOINT_BLOCK_START, dx.JOINT_BLOCK_LENGTH)
             except ServoSilentError:
+                self._missed_reads[joint.name] = self._missed_reads.get(joint.name, 0) + 1
                 continue
             any_answer = True
             self._last_answer[joint.name] = now
+            self._missed_reads[joint.name] = 0
             held, state = dx.decode_joint_block(reply.params)
             sent = self._sent_goals.get(joint.name)
             if sent is not None and (held.position, held.moving_speed) != sent:
@@ -461,9 +470,7 @@ class ArmDriver(SupervisedDevice):
                 errors=joint_errors,
                 stamp=now,
             )
-        # one missed read is no silence: a servo counts as silent after joint_silent_timeout
-        silent = {name for name in self.joints
-                  if now - self._last_answer.get(name, -math.inf) > self.config.joint_silent_timeout}
+        silent = {name for name in self.joints if self._is_silent(name, now)}
         self._report_changes(silent, errors)
         with self._lock:
             self._readings.update(readings)
@@ -473,6 +480,11 @@ class ArmDriver(SupervisedDevice):
                 self._sequence += 1
         self._resend_missed_goals(bus, missed)
         return any_answer
+
+    def _is_silent(self, name: str, now: float) -> bool:
+        if name not in self._last_answer:
+            return True  # not heard from in this session
+        return joint_went_silent(self._missed_reads[name], now - self._last_answer[name], self.config)
 
     def _resend_missed_goals(self, bus: DynamixelBus, missed: Mapping[str, Goal]) -> None:
         """Write again, with a status reply, the goals the servos do not hold: a SYNC_WRITE that a
@@ -507,8 +519,9 @@ class ArmDriver(SupervisedDevice):
         for name in sorted(silent - old_silent):
             self.health.count("joint_silences")
             tries = f"{self.config.retries} tries of {self.config.reply_timeout * 1000:.0f} ms per read"
+            unanswered = f"{self.config.joint_silent_reads} reads in a row over {self.config.joint_silent_timeout:g} s"
             self.health.event(Level.ERROR, f"joint {name} (id {self.joints[name].servo_id}) stopped "
-                              f"answering (no reply for {self.config.joint_silent_timeout:g} s, {tries})")
+                              f"answering ({unanswered}, {tries})")
         for name in sorted(old_silent - silent):
             self.health.event(Level.OK, f"joint {name} (id {self.joints[name].servo_id}) answers again")
         for name, joint_errors in errors.items():
@@ -557,6 +570,13 @@ class ArmDriver(SupervisedDevice):
         if pending is not None:
             pending[2].append("the arm disconnected")
             pending[1].set()
+
+
+def joint_went_silent(missed_reads: int, since_answer: float, config: ArmConfig) -> bool:
+    """Whether a joint with `missed_reads` unanswered reads in a row, `since_answer` s after its last
+    reply, counts as not answering. Both must hold: on a slow host a few unanswered reads stretch a
+    cycle past the time limit, and at a high rate a few reads in a row take little time."""
+    return missed_reads >= config.joint_silent_reads and since_answer > config.joint_silent_timeout
 
 
 def joint_configs(names: Sequence[str], ids: Sequence[int], offsets: Sequence[float],
