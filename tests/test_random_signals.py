@@ -4,9 +4,10 @@ of its work (an inspection, a drive). That is what `ros2 launch` does at Ctrl-C;
 reproduces it without launch (see its docstring; run it for a longer campaign).
 
 A modest share of that campaign: two trials per scenario (one SIGINT, one SIGTERM), half of them
-within the scenario's start-up, three at once. The seed changes per run and is in the report, so a
-failure can be run again with `tools/signal_trials.py --seed N --trials 2 --max-delay 6
---startup-share 0.5 --only NAME`.
+within the scenario's start-up, a quarter with the signal sent twice (as Ctrl-C under launch in a
+terminal), three at once. The seed changes per run and is in the report, so a failure can be run
+again with `tools/signal_trials.py --seed N --trials 2 --max-delay 6 --startup-share 0.5
+--twice-share 0.25 --only NAME`.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ trials = _load_harness()
 
 
 def test_every_node_executable_stops_cleanly_when_signalled_at_random_moments(tmp_path: Path) -> None:
-    settings = trials.TrialSettings(trials=2, max_delay=6.0, startup_share=0.5, parallel=3,
+    settings = trials.TrialSettings(trials=2, max_delay=6.0, startup_share=0.5, parallel=3, twice_share=0.25,
                                     seed=time.time_ns() % 1_000_000, log_dir=tmp_path)
     chosen = [s for s in trials.scenarios() if s.name != "experiment"]  # the team runner: the campaign's
     results = trials.run_campaign(settings, chosen, progress=lambda line: None)

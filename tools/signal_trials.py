@@ -265,6 +265,7 @@ class TrialSettings:
     startup_share: float = 0.3  # of the trials signalled within the scenario's start-up span
     parallel: int = 2  # trials at once
     load_share: float = 0.0  # of the trials run with a busy-loop process on every core
+    twice_share: float = 0.0  # of the trials that signal twice, 0-0.5 s apart (launch in a terminal)
     only: tuple[str, ...] = ()  # scenario or executable names; empty: all
     seed: int = 1
     exit_timeout: float = 10.0  # s after the signal
@@ -278,10 +279,12 @@ class TrialPlan:
     signal: signal.Signals
     delay: float
     under_load: bool
+    again_after: float | None = None  # s after the first signal, the same signal once more
 
     @property
     def label(self) -> str:
-        return f"{self.scenario.name} #{self.number} {self.signal.name} at {self.delay:.2f} s"
+        again = f" and again {self.again_after:.2f} s later" if self.again_after is not None else ""
+        return f"{self.scenario.name} #{self.number} {self.signal.name} at {self.delay:.2f} s{again}"
 
 
 @dataclass(frozen=True)
@@ -349,7 +352,8 @@ def scenario_plans(rng: random.Random, settings: TrialSettings, scenario: Scenar
     signals = ([signal.SIGINT, signal.SIGTERM] * (trials // 2 + 1))[:trials]
     rng.shuffle(signals)
     loaded_from = trials - round(trials * settings.load_share)
-    return [TrialPlan(scenario, k + 1, signals[k], draw_delay(rng, settings, scenario), k >= loaded_from)
+    return [TrialPlan(scenario, k + 1, signals[k], draw_delay(rng, settings, scenario), k >= loaded_from,
+                      rng.uniform(0.0, 0.5) if rng.random() < settings.twice_share else None)
             for k in range(trials)]
 
 
@@ -505,7 +509,9 @@ def signal_and_judge(plan: TrialPlan, settings: TrialSettings, target: subproces
     os.kill(target.pid, plan.signal)  # that process alone, as launch does
     signalled = time.monotonic()
     try:
-        code = target.wait(settings.exit_timeout)
+        if plan.again_after is not None:
+            signal_again_if_running(target, plan)
+        code = target.wait(max(0.0, settings.exit_timeout - (time.monotonic() - signalled)))
     except subprocess.TimeoutExpired:
         dump_stacks_and_kill(target)
         return TrialResult(plan, None, None, f"still running {settings.exit_timeout:g} s after "
@@ -514,6 +520,16 @@ def signal_and_judge(plan: TrialPlan, settings: TrialSettings, target: subproces
     kill_session(target)  # anything left in its session
     failure = judge_exit(plan.scenario, code, log_path) or leftovers(log_path.parent)
     return TrialResult(plan, code, stop_seconds, failure, log_path, caught)
+
+
+def signal_again_if_running(target: subprocess.Popen[bytes], plan: TrialPlan) -> None:
+    """Ctrl-C in launch's terminal reaches a node twice: from the terminal (its process group) and
+    from launch itself, a moment later."""
+    assert plan.again_after is not None
+    try:
+        target.wait(plan.again_after)
+    except subprocess.TimeoutExpired:
+        os.kill(target.pid, plan.signal)
 
 
 def dump_stacks_and_kill(process: subprocess.Popen[bytes]) -> None:
@@ -652,42 +668,44 @@ def describe(result: TrialResult, done: int, total: int) -> str:
     return f"[{done:4d}/{total}] {result.plan.label}{load}: {outcome}"
 
 
-def table(results: Sequence[TrialResult]) -> str:
-    """Per scenario: trials, SIGINT/SIGTERM, under load, clean stops, failures, signals too early for
-    any code of ours, the slowest stop; then every trial that did not stop cleanly."""
-    header = (f"{'scenario':30s} {'trials':>6s} {'SIGINT':>6s} {'SIGTERM':>7s} {'load':>5s} {'clean':>5s} "
-              f"{'failed':>6s} {'too early':>9s} {'slowest stop':>12s}")
+COLUMNS = ("trials", "SIGINT", "SIGTERM", "load", "twice", "clean", "failed", "too early")
+
+
+def counts(results: Sequence[TrialResult]) -> tuple[int, ...]:
+    """The numbers of COLUMNS."""
+    return (len(results), sum(r.plan.signal == signal.SIGINT for r in results),
+            sum(r.plan.signal == signal.SIGTERM for r in results), sum(r.plan.under_load for r in results),
+            sum(r.plan.again_after is not None for r in results),
+            *(sum(r.outcome == outcome for r in results) for outcome in ("clean", "failed", "too early")))
+
+
+def counts_table(results: Sequence[TrialResult], key: Callable[[TrialResult], str], title: str) -> list[str]:
+    widths = [max(len(c), 6) for c in COLUMNS]
+    header = f"{title:30s} " + " ".join(f"{c:>{w}s}" for c, w in zip(COLUMNS, widths, strict=True))
     rows = [header, "-" * len(header)]
-    for name in dict.fromkeys(r.plan.scenario.name for r in results):
-        mine = [r for r in results if r.plan.scenario.name == name]
-        stops = [r.stop_seconds for r in mine if r.stop_seconds is not None]
-        count = {outcome: sum(r.outcome == outcome for r in mine) for outcome in ("clean", "failed", "too early")}
-        rows.append(
-            f"{name:30s} {len(mine):6d} {sum(r.plan.signal == signal.SIGINT for r in mine):6d} "
-            f"{sum(r.plan.signal == signal.SIGTERM for r in mine):7d} {sum(r.plan.under_load for r in mine):5d} "
-            f"{count['clean']:5d} {count['failed']:6d} {count['too early']:9d} "
-            f"{(max(stops) if stops else 0.0):10.1f} s")
+    for name in dict.fromkeys(key(r) for r in results):
+        numbers = counts([r for r in results if key(r) == name])
+        rows.append(f"{name:30s} " + " ".join(f"{n:{w}d}" for n, w in zip(numbers, widths, strict=True)))
+    return rows
+
+
+def table(results: Sequence[TrialResult]) -> str:
+    """Per scenario: trials, SIGINT/SIGTERM, under load, signalled twice, clean stops, failures,
+    signals too early for any code of ours; then every trial that did not stop cleanly."""
+    rows = counts_table(results, lambda r: r.plan.scenario.name, "scenario")
+    stops = [r.stop_seconds for r in results if r.stop_seconds is not None]
     unclean = [r for r in results if r.outcome != "clean"]
     failed = sum(r.outcome == "failed" for r in results)
-    rows.append(f"{len(results)} trials, {failed} failed, {len(unclean) - failed} signalled too early")
+    rows.append(f"{len(results)} trials, {failed} failed, {len(unclean) - failed} signalled too early; "
+                f"slowest clean stop {max(stops, default=0.0):.1f} s after the signal")
     rows += [f"{r.outcome.upper()} {r.plan.label}{' under load' if r.plan.under_load else ''}: {r.failure} "
              f"({r.log_path})" for r in unclean]
     return "\n".join(rows)
 
 
 def executable_table(results: Sequence[TrialResult]) -> str:
-    """The same per executable: all its scenarios together."""
-    header = (f"{'executable':18s} {'trials':>6s} {'SIGINT':>6s} {'SIGTERM':>7s} {'load':>5s} {'clean':>5s} "
-              f"{'failed':>6s} {'too early':>9s}")
-    rows = [header, "-" * len(header)]
-    for name in dict.fromkeys(r.plan.scenario.executable for r in results):
-        mine = [r for r in results if r.plan.scenario.executable == name]
-        rows.append(
-            f"{name:18s} {len(mine):6d} {sum(r.plan.signal == signal.SIGINT for r in mine):6d} "
-            f"{sum(r.plan.signal == signal.SIGTERM for r in mine):7d} {sum(r.plan.under_load for r in mine):5d} "
-            f"{sum(r.outcome == 'clean' for r in mine):5d} {sum(r.outcome == 'failed' for r in mine):6d} "
-            f"{sum(r.outcome == 'too early' for r in mine):9d}")
-    return "\n".join(rows)
+    """The same counts per executable: all its scenarios together."""
+    return "\n".join(counts_table(results, lambda r: r.plan.scenario.executable, "executable"))
 
 
 def write_results(results: Sequence[TrialResult], path: Path) -> None:
@@ -697,7 +715,8 @@ def write_results(results: Sequence[TrialResult], path: Path) -> None:
             out.write(json.dumps({
                 "scenario": r.plan.scenario.name, "executable": r.plan.scenario.executable,
                 "trial": r.plan.number, "signal": r.plan.signal.name, "delay": round(r.plan.delay, 3),
-                "under_load": r.plan.under_load, "outcome": r.outcome, "exit_code": r.exit_code,
+                "under_load": r.plan.under_load, "again_after": r.plan.again_after, "outcome": r.outcome,
+                "exit_code": r.exit_code,
                 "stop_seconds": None if r.stop_seconds is None else round(r.stop_seconds, 3),
                 "failure": r.failure, "log": str(r.log_path),
             }) + "\n")
@@ -719,6 +738,9 @@ def parse_args(argv: Sequence[str] | None) -> tuple[TrialSettings, argparse.Name
     load = parser.add_mutually_exclusive_group()
     load.add_argument("--load", action="store_true", help="every trial with a busy loop on every core")
     load.add_argument("--load-share", type=float, default=0.0, help="share of the trials under load")
+    parser.add_argument("--twice-share", type=float, default=0.0,
+                        help="share of the trials whose signal comes twice, 0-0.5 s apart (as Ctrl-C "
+                             "under ros2 launch in a terminal)")
     parser.add_argument("--only", default="", help="comma-separated scenario or executable names")
     parser.add_argument("--seed", type=int, default=int(time.time()), help="seed of the delays and signals")
     parser.add_argument("--exit-timeout", type=float, default=10.0, help="s a node may take to exit")
@@ -729,7 +751,7 @@ def parse_args(argv: Sequence[str] | None) -> tuple[TrialSettings, argparse.Name
         parser.error("--trials and --parallel must be >= 1, --max-delay >= 0, --load-share within [0, 1]")
     settings = TrialSettings(
         trials=args.trials, per_executable=args.per_executable, max_delay=args.max_delay,
-        startup_share=args.startup_share, parallel=args.parallel,
+        startup_share=args.startup_share, parallel=args.parallel, twice_share=args.twice_share,
         load_share=1.0 if args.load else args.load_share, seed=args.seed, exit_timeout=args.exit_timeout,
         only=tuple(name.strip() for name in args.only.split(",") if name.strip()),
     )

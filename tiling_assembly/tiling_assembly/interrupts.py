@@ -26,6 +26,8 @@ signalled = threading.Event()  # Ctrl-C or SIGTERM arrived
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:
+    if signalled.is_set():
+        return  # stopping already: Ctrl-C under `ros2 launch` in a terminal comes twice
     signalled.set()
     raise KeyboardInterrupt
 
@@ -103,3 +105,9 @@ def run_executable(module_name: str, interrupted_exit_code: int = 0) -> int:
             # turns the KeyboardInterrupt into "ImportError: initialization failed"
             return interrupted_exit_code
         raise
+    finally:
+        # On its way out. The interpreter's exit takes a moment (the middleware tears down), and it
+        # gives Python's handlers back to the default action: a signal then would kill the process
+        # (exit -2 or -15 after a clean stop). Ignored signals stay ignored.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
