@@ -4,10 +4,10 @@ of its work (an inspection, a drive). That is what `ros2 launch` does at Ctrl-C;
 reproduces it without launch (see its docstring; run it for a longer campaign).
 
 A modest share of that campaign: two trials per scenario (one SIGINT, one SIGTERM), half of them
-within the scenario's start-up, a quarter with the signal sent twice (as Ctrl-C under launch in a
-terminal), three at once. The seed changes per run and is in the report, so a failure can be run
-again with `tools/signal_trials.py --seed N --trials 2 --max-delay 6 --startup-share 0.5
---twice-share 0.25 --only NAME`.
+within the scenario's start-up, a quarter with the signal sent twice (Ctrl-C pressed twice, or
+launch's SIGTERM while the node still stops), three at once. The seed changes per run and is in
+the report, so a failure can be run again with `tools/signal_trials.py --seed N --trials 2
+--max-delay 6 --startup-share 0.5 --twice-share 0.25 --only NAME`.
 """
 
 from __future__ import annotations

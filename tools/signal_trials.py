@@ -265,7 +265,7 @@ class TrialSettings:
     startup_share: float = 0.3  # of the trials signalled within the scenario's start-up span
     parallel: int = 2  # trials at once
     load_share: float = 0.0  # of the trials run with a busy-loop process on every core
-    twice_share: float = 0.0  # of the trials that signal twice, 0-0.5 s apart (launch in a terminal)
+    twice_share: float = 0.0  # of the trials that signal twice, 0-0.5 s apart (Ctrl-C pressed twice)
     only: tuple[str, ...] = ()  # scenario or executable names; empty: all
     seed: int = 1
     exit_timeout: float = 10.0  # s after the signal
@@ -523,8 +523,8 @@ def signal_and_judge(plan: TrialPlan, settings: TrialSettings, target: subproces
 
 
 def signal_again_if_running(target: subprocess.Popen[bytes], plan: TrialPlan) -> None:
-    """Ctrl-C in launch's terminal reaches a node twice: from the terminal (its process group) and
-    from launch itself, a moment later."""
+    """A node can be signalled again while it stops: Ctrl-C pressed twice, launch's SIGTERM once its
+    `sigterm_timeout` is over, or the SIGINT of a non-interactive launch besides its group's."""
     assert plan.again_after is not None
     try:
         target.wait(plan.again_after)
@@ -739,8 +739,8 @@ def parse_args(argv: Sequence[str] | None) -> tuple[TrialSettings, argparse.Name
     load.add_argument("--load", action="store_true", help="every trial with a busy loop on every core")
     load.add_argument("--load-share", type=float, default=0.0, help="share of the trials under load")
     parser.add_argument("--twice-share", type=float, default=0.0,
-                        help="share of the trials whose signal comes twice, 0-0.5 s apart (as Ctrl-C "
-                             "under ros2 launch in a terminal)")
+                        help="share of the trials whose signal comes twice, 0-0.5 s apart (Ctrl-C "
+                             "pressed twice)")
     parser.add_argument("--only", default="", help="comma-separated scenario or executable names")
     parser.add_argument("--seed", type=int, default=int(time.time()), help="seed of the delays and signals")
     parser.add_argument("--exit-timeout", type=float, default=10.0, help="s a node may take to exit")

@@ -27,7 +27,7 @@ signalled = threading.Event()  # Ctrl-C or SIGTERM arrived
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:
     if signalled.is_set():
-        return  # stopping already: Ctrl-C under `ros2 launch` in a terminal comes twice
+        return  # stopping already: Ctrl-C pressed twice, or launch's SIGTERM after its SIGINT
     signalled.set()
     raise KeyboardInterrupt
 
