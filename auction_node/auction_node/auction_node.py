@@ -142,7 +142,7 @@ class AuctionNode(Node):
         declare("liveness_timeout", 1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
         declare("acceptance_timeout", 10.0, "s of wall-clock time without acceptance from a winner still heard "
                 "before its tile is auctioned again (a lost winner's tile goes back at once).")
-        declare("resend_period", 0.25, "s of wall-clock time between copies of an unanswered announcement or award.")
+        declare("resend_period", 0.1, "s of wall-clock time between copies of an unanswered announcement or award.")
         declare("status_period", 0.2, "s of wall-clock time between two /auction/status heartbeats.")
         declare("reopen_delay", 5.0, "s (node clock) before an auction nobody bid in is reopened.")
         declare("lost_robot_policy", "replan", "'replan' (planner's /replan service) or 'auction' per tile.")

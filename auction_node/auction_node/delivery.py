@@ -35,8 +35,8 @@ class PendingAward:
 class AwardDelivery:
     """Awards sent and not yet accepted."""
 
-    resend_period: float = 0.25  # s of wall-clock time between two copies of an award
-    give_up_after: float = 10.0  # s without acceptance from a winner still heard
+    resend_period: float  # s of wall-clock time between two copies of an award
+    give_up_after: float  # s without acceptance from a winner still heard
     pending: dict[int, PendingAward] = field(default_factory=dict)  # auction id -> award
     resends: int = 0  # copies sent over all awards
 
@@ -83,7 +83,7 @@ class AwardDelivery:
 class AnnouncementRepeater:
     """When each open auction's announcement last went out."""
 
-    resend_period: float = 0.25  # s of wall-clock time
+    resend_period: float  # s of wall-clock time
     last_sent: dict[int, float] = field(default_factory=dict)  # auction id -> wall time
     resends: int = 0
 

@@ -23,7 +23,7 @@ def test_an_award_is_sent_again_until_its_acceptance_arrives() -> None:
 
 
 def test_a_heartbeat_listing_the_tile_accepts_the_award_whose_acceptance_was_lost() -> None:
-    delivery = AwardDelivery()
+    delivery = AwardDelivery(resend_period=0.25, give_up_after=10.0)
     delivery.sent(award(1, 7, "robot1"), 0, 0.0, 0.0)
     delivery.sent(award(2, 8, "robot2"), 0, 0.0, 0.0)
     assert delivery.taken_up("robot2", [7, 3]) == []  # robot2 did not win tile 7
