@@ -113,6 +113,8 @@ class AuctionNode(Node):
         self.announcements: dict[int, AuctionAnnouncement] = {}  # open auction id -> its announcement
         self.reopen: list[tuple[float, int, int]] = []  # (node time, tile, reason)
         self.plan_revision = 0
+        self.in_lost_hands: dict[str, tuple[int, float]] = {}  # lost robot -> (tile in its hands, node time)
+        self.lost_tile_grace = float(self.get_parameter("lost_tile_grace").value)
 
         self.announce_pub = self.create_publisher(AuctionAnnouncement, "/auction/announcements", COORDINATION)
         self.award_pub = self.create_publisher(AuctionAward, "/auction/awards", COORDINATION)
@@ -143,6 +145,8 @@ class AuctionNode(Node):
         declare("acceptance_timeout", 10.0, "s of wall-clock time without acceptance from a winner still heard "
                 "before its tile is auctioned again (a lost winner's tile goes back at once).")
         declare("resend_period", 0.1, "s of wall-clock time between copies of an unanswered announcement or award.")
+        declare("lost_tile_grace", 60.0, "s (node clock) the tile in a lost robot's hands stays its own before "
+                "it is auctioned (out of reach, the robot may be placing it).")
         declare("status_period", 0.2, "s of wall-clock time between two /auction/status heartbeats.")
         declare("reopen_delay", 5.0, "s (node clock) before an auction nobody bid in is reopened.")
         declare("lost_robot_policy", "replan", "'replan' (planner's /replan service) or 'auction' per tile.")
@@ -282,6 +286,7 @@ class AuctionNode(Node):
             self.robot_lost(robot)
         self.close_auctions()
         self.repeat_unanswered(time.monotonic())
+        self.give_up_lost_hands()
         for support, at, robot, tile_id in self.unconfirmed.due(self.now()):
             self.robot_found_missing(support, at, robot, tile_id, waited=True)
         due = [entry for entry in self.reopen if entry[0] <= self.now()]
@@ -331,14 +336,21 @@ class AuctionNode(Node):
         return msg
 
     def robot_lost(self, robot: str) -> None:
+        """Its tiles go to the others, except the one in its hands: a robot out of reach may be
+        placing it right now; that tile goes to auction only if it is not heard of for
+        `lost_tile_grace` (two robots must never place the same tile)."""
         self.book.forget_bidder(robot)
         last = self.status.get(robot)
-        tiles = list(last.remaining_tiles) if last is not None else []
+        in_hand = last.current_tile if last is not None else 0
+        tiles = [t for t in (last.remaining_tiles if last is not None else []) if t != in_hand]
+        kept = f"; tile {in_hand} in its hands stays its own for {self.lost_tile_grace:g} s" if in_hand else ""
         self.decide(
             f"{robot} lost (no heartbeat for {self.liveness.timeout:.1f} s); its unplaced tiles "
-            f"{tiles} go to {', '.join(self.liveness.alive()) or 'nobody'} by {self.lost_robot_policy}",
+            f"{tiles} go to {', '.join(self.liveness.alive()) or 'nobody'} by {self.lost_robot_policy}{kept}",
             error=True,
         )
+        if in_hand:
+            self.in_lost_hands[robot] = (in_hand, self.now() + self.lost_tile_grace)
         unaccepted = self.delivery.winner_lost(robot)
         if not self.liveness.alive():
             return
@@ -352,14 +364,28 @@ class AuctionNode(Node):
 
     def robot_back(self, robot: str) -> None:
         """A lost robot is heard again: its old tiles are others' now; a replan gives it a share."""
+        self.in_lost_hands.pop(robot, None)
         if self.lost_robot_policy == "replan" and self.replan_client.service_is_ready():
             self.decide(f"{robot} is back: it takes part in auctions again, and a replan gives it a share")
             self.request_replan(f"{robot} came back", [])
         else:
             self.decide(f"{robot} is back: it takes part in auctions again")
 
+    def give_up_lost_hands(self) -> None:
+        """Tiles in the hands of robots lost for `lost_tile_grace` and not placed: to auction."""
+        placed = set(self.detector.placed_tiles())
+        for robot, (tile_id, due) in list(self.in_lost_hands.items()):
+            if self.now() < due:
+                continue
+            del self.in_lost_hands[robot]
+            if tile_id not in placed:
+                self.decide(f"{robot} is still lost after {self.lost_tile_grace:g} s: tile {tile_id} it had in "
+                            "hand goes to auction", error=True)
+                self.announce(tile_id, AuctionAnnouncement.REASON_ROBOT_LOST)
+
     def request_replan(self, why: str, tiles: list[int]) -> None:
         in_flight = [s.current_tile for r, s in self.status.items() if r in self.liveness.alive() and s.current_tile]
+        in_flight += [tile_id for tile_id, _ in self.in_lost_hands.values()]
         request = Replan.Request(
             placed_tile_ids=sorted(set(self.detector.placed_tiles()) | set(in_flight)),
             available_robots=self.liveness.alive(),
