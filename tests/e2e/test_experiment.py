@@ -19,6 +19,20 @@ import pytest
 import yaml
 from conftest import REPO, STRUCTURES
 
+from tiling_sim.virtual_hosts import VirtualHostsUnavailableError, check_available, keeper_processes
+
+
+def virtual_hosts_unavailable_reason() -> str:
+    try:
+        check_available()
+    except VirtualHostsUnavailableError as error:
+        return str(error)
+    return ""
+
+
+def virtual_hosts_available() -> bool:
+    return not virtual_hosts_unavailable_reason()
+
 
 def run_experiment(
     report: Path, *args: str, timeout: float = 240.0, real_time_factor: float = 30.0
@@ -172,8 +186,42 @@ def test_bad_command_lines_get_one_clear_error_and_start_nothing(tmp_path: Path)
         (["--config", str(tmp_path / "absent")], "no such folder of parameter files"),
         (["--structure", str(broken)], str(broken)),
         (["--robots", "0"], "--robots must be >= 1"),
+        (["--link-loss", "5"], "need --hosts netns"),
+        (["--hosts", "netns", "--link-outage", "robot9:10:5"], "no such robot"),
+        (["--hosts", "netns", "--link-outage", "robot2:ten:5"], "ROBOT:AT:SECONDS"),
+        (["--hosts", "netns", "--link-loss", "120"], "link loss must be"),
     ):
         result = subprocess.run([experiment, *args, "--report", str(tmp_path / "report")], cwd=REPO,
                                 capture_output=True, text=True, timeout=60)
         assert result.returncode == 2 and says in result.stderr, result.stderr
         assert "Traceback" not in result.stderr and not (tmp_path / "report").exists()
+
+
+@pytest.mark.skipif(not virtual_hosts_available(), reason=virtual_hosts_unavailable_reason())
+def test_ctrl_c_with_hosts_removes_every_host_and_process(tmp_path: Path) -> None:
+    """With --hosts netns, Ctrl-C in the middle of a trial leaves no node and no namespace keeper."""
+    before = set(_processes_of_run())
+    keepers_before = set(keeper_processes())
+    command = [str(REPO / "install/tiling_sim/lib/tiling_sim/experiment"), "--structure",
+               str(STRUCTURES / "paper_14.yaml"), "--report", str(tmp_path), "--trials", "1", "--quiet",
+               "--hosts", "netns", "--link-loss", "5", "--link-rate", "5"]
+    runner = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        children: list[int] = []
+        while time.monotonic() < deadline and len(children) < 8:
+            children = [p for run, pids in _processes_of_run().items() if run not in before for p in pids]
+            time.sleep(0.2)
+        assert len(children) >= 8, "the run's nodes did not start"
+        assert len(set(keeper_processes()) - keepers_before) >= 6  # hub, base, world, observer, robots, vi
+        time.sleep(3.0)
+        runner.send_signal(signal.SIGINT)
+        _, stderr = runner.communicate(timeout=30)
+    finally:
+        if runner.poll() is None:
+            runner.kill()
+    assert runner.returncode == 130, stderr
+    assert "interrupted: every node was stopped" in stderr and "Traceback" not in stderr
+    time.sleep(0.5)
+    assert [p for run, pids in _processes_of_run().items() if run not in before for p in pids] == []
+    assert set(keeper_processes()) - keepers_before == set()
