@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import time
 from collections.abc import Callable, Iterator
@@ -30,6 +31,7 @@ from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import PlaceTile
 from tiling_assembly_msgs.srv import SimSnapshot
 from tiling_sim.robot_motion import placement_phases
+from tiling_sim.ros_domain import claim_domain_id
 from tiling_sim.sim_interface import EVENTS_QOS, stamp_ns
 from tiling_sim.sim_settings import RobotBodySettings
 
@@ -51,17 +53,20 @@ def _command(executable: str, namespace: str | None, *extra: str) -> list[str]:
 
 
 class Simulator:
-    """sim_world, /robot1's sim_robot and /vi's sim_vi, and a node of the test that watches them."""
+    """sim_world, /robot1's sim_robot and /vi's sim_vi on a ROS domain of their own, and a node of
+    the test that watches them; `world_later`: the world is started by `start_world`."""
 
-    def __init__(self) -> None:
+    def __init__(self, world_later: bool = False) -> None:
+        self.domain, self._domain_lock = claim_domain_id()
         body = ("-p", "use_sim_time:=true")
         self.processes = {
-            "sim_world": self._start(_command("sim_world", None, "-p", "removals:=0")),
             "sim_robot": self._start(_command("sim_robot", "/robot1", *body)),
             "sim_vi": self._start(_command("sim_vi", "/vi", *body)),
         }
+        if not world_later:
+            self.start_world()
         self.context = Context()
-        rclpy.init(context=self.context)
+        rclpy.init(context=self.context, domain_id=self.domain)
         self.node = Node("sim_processes_test", context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -76,9 +81,13 @@ class Simulator:
         self.place = ActionClient(self.node, PlaceTile, "/robot1/place_tile")
         self.snapshot = self.node.create_client(SimSnapshot, "/sim/snapshot")
 
-    @staticmethod
-    def _start(command: list[str]) -> subprocess.Popen[str]:
-        return subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    def start_world(self) -> None:
+        self.processes["sim_world"] = self._start(_command("sim_world", None, "-p", "removals:=0"))
+
+    def _start(self, command: list[str]) -> subprocess.Popen[str]:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain))
+        return subprocess.Popen(command, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True)
 
     def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -94,6 +103,11 @@ class Simulator:
 
     def place_tile(self, tile_id: int, on_feedback: Callable[[Any], None] = lambda _f: None, like: int = 0) -> Any:
         """Place `tile_id` (where tile `like` goes, if given); the result."""
+        return self.call(self.send_placement(tile_id, on_feedback, like).get_result_async(), timeout=60.0).result
+
+    def send_placement(self, tile_id: int, on_feedback: Callable[[Any], None] = lambda _f: None,
+                       like: int = 0) -> Any:
+        """The accepted goal's handle."""
         tile = PAPER.tiles[like or tile_id]
         goal = PlaceTile.Goal(tile_id=tile_id, tile_type=tile.type_name)
         goal.pose.header.frame_id = "map"
@@ -101,12 +115,14 @@ class Simulator:
         goal.cache.x, goal.cache.y = PAPER.caches[tile.type_name]
         handle = self.call(self.place.send_goal_async(goal, feedback_callback=on_feedback))
         assert handle.accepted
-        return self.call(handle.get_result_async(), timeout=60.0).result
+        return handle
 
     def close(self) -> dict[str, str]:
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
-        return {name: stop_node_process(process) for name, process in self.processes.items()}
+        outputs = {name: stop_node_process(process) for name, process in self.processes.items()}
+        self._domain_lock.close()
+        return outputs
 
 
 @pytest.fixture(scope="module")
@@ -169,6 +185,21 @@ def test_kinect_frames_carry_the_time_of_the_world_they_show(sim: Simulator) -> 
     assert stamp_ns(cloud.header.stamp) in stamps  # the overhead cameras saw the VI robot at that time
     judged = [e for e in sim.events if e["event"] in ("scan_judged", "scan_unjudged")]
     assert judged and all(e["event"] == "scan_unjudged" for e in judged)  # no vi_node here: nobody judges
+
+
+def test_a_goal_sent_before_the_world_is_found_waits_for_it() -> None:
+    """A body serves its action at once (the team's clients find it early); the world may come later."""
+    late = Simulator(world_later=True)
+    try:
+        assert late.spin_until(late.place.server_is_ready, 60.0), "sim_robot never served place_tile"
+        handle = late.send_placement(3)  # a floor tile
+        result = handle.get_result_async()
+        late.spin_until(result.done, 2.0)
+        assert not result.done()  # no world, no answer, no time: the goal waits
+        late.start_world()
+        assert late.call(result, timeout=60.0).result.error_code == PlaceTile.Result.SUCCEEDED
+    finally:
+        late.close()
 
 
 @pytest.mark.parametrize("executable", ["sim_world", "sim_robot", "sim_vi"])

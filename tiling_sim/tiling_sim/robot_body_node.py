@@ -8,7 +8,7 @@ the body tells the world where its base will stand when the phase ends (`/sim/mo
 the world before it sets out, when the picking ends (did the tile slip?) and when the placing ends
 (is the tile now in place, or which support is absent?) over `/sim/place`.
 
-One goal at a time: a second is refused, and so is one that comes while the world does not answer.
+One goal at a time: a second is refused. A goal the world does not answer fails (FAILED_HARDWARE).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ class SimRobot(Node):
         self.position: Point2 = self.settings.robot_starts(structure)[self.name]
         self.busy = False
         self.time = sim.SimTime(self)
-        self.world = self.create_client(SimPlace, sim.PLACE)
+        self.world = sim.WorldClient(self, SimPlace, sim.PLACE)
         self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, sim.MOTION_QOS)
         # served from the start, so that the team's clients and this server have long discovered
         # each other when the first goal comes (a goal response sent before is lost for good)
@@ -64,15 +64,15 @@ class SimRobot(Node):
         if self.busy:
             self.get_logger().warn(f"{self.name} is busy: refusing a second place_tile goal")
             return GoalResponse.REJECT
-        if not self.world.service_is_ready():
-            self.get_logger().warn(f"the world does not answer on {sim.PLACE} yet: refusing a place_tile goal")
-            return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
     async def execute(self, handle: Any) -> Result:
         self.busy = True
         try:
             result, start, end = await self.place(handle)
+        except WorldSilentError as error:
+            self.get_logger().error(str(error))
+            result, start, end = _finish(handle.abort, Result.FAILED_HARDWARE, str(error)), 0.0, 0.0
         finally:
             self.busy = False
         result.duration = end - start
@@ -121,8 +121,12 @@ class SimRobot(Node):
         return result, start, at
 
     async def ask(self, step: int, tile_id: int) -> SimPlace.Response:
-        """The world's answer to one step of a placement."""
-        return await self.world.call_async(SimPlace.Request(robot=self.name, tile_id=tile_id, step=step))
+        """The world's answer to one step of a placement (FAILED_HARDWARE's reason when none comes)."""
+        answer = await self.world.call(SimPlace.Request(robot=self.name, tile_id=tile_id, step=step))
+        if answer is None:
+            raise WorldSilentError(f"the simulated world did not answer on {sim.PLACE} within "
+                              f"{sim.WORLD_PATIENCE:g} s")
+        return answer
 
     def pose_msg(self, at: float) -> PoseStamped:
         """Where the base is at `at` (s): the body knows its own pose exactly (the overhead cameras'
@@ -133,6 +137,10 @@ class SimRobot(Node):
         pose.pose.position.x, pose.pose.position.y = self.position
         pose.pose.orientation.w = 1.0
         return pose
+
+
+class WorldSilentError(RuntimeError):
+    """The simulated world did not answer a step of a placement."""
 
 
 def _finish(end: Any, code: int, message: str) -> Result:

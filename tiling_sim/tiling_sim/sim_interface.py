@@ -8,8 +8,8 @@ Real robots never use it; it stands for the physics the real robots would meet. 
 | `/clock` | rosgraph_msgs/Clock | world -> all | reliable, depth 10 |
 | `/sim/place` | SimPlace.srv | `sim_robot` -> world | service: each placement step, atomically |
 | `/sim/snapshot` | SimSnapshot.srv | `sim_vi` -> world | service: tiles, robots, stamp; may hold the clock |
-| `/sim/motion` | SimMotion.msg | bodies -> world | reliable, depth 100: where a base stands from when |
-| `/sim/scan_progress` | SimScanProgress.msg | `sim_vi` -> world | reliable, depth 20: the scan's fate |
+| `/sim/motion` | SimMotion.msg | bodies -> world | reliable, transient local, depth 10: where a base stands |
+| `/sim/scan_progress` | SimScanProgress.msg | `sim_vi` -> world | reliable, transient local, depth 20: a scan's fate |
 | `/sim/events` | std_msgs/String (JSON) | world -> runner | reliable, transient local, depth 1000 |
 | `/sim/start` | std_msgs/Empty | runner -> world | reliable, transient local, depth 1000 |
 
@@ -19,10 +19,12 @@ robot's body from a snapshot of a few hundred bytes and published on its own hos
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -39,8 +41,12 @@ START = "/sim/start"
 
 CLOCK_OUT = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 CLOCK_IN = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)  # every tick, in order (SimTime)
-MOTION_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-SCAN_PROGRESS_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE)
+# kept for a world that joins late (its subscription matched after the first declarations): where a
+# base stands from when is absolute, so the world may hear it late, never lose it
+MOTION_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+SCAN_PROGRESS_QOS = QoSProfile(depth=20, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                               reliability=ReliabilityPolicy.RELIABLE)
+WORLD_PATIENCE = 10.0  # s of wall time a body waits for the world to answer before giving up
 EVENTS_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
 
@@ -94,3 +100,44 @@ class SimTime:
         future = Future()
         self._alarms.set(at, lambda: future.done() or future.set_result(self.now))
         return future
+
+
+class WorldClient:
+    """A body's client of one of the world's services that waits until the world answers.
+
+    A body serves its robot's action from its start, so that the team's clients discover it early;
+    the world's service may be found a little later (discovery takes long on a loaded host). A call
+    therefore waits for the service on the wall clock, and a call the world does not answer within
+    `WORLD_PATIENCE` s gives None, so a robot whose world is gone fails its goal instead of hanging.
+    """
+
+    def __init__(self, node: Node, service_type: Any, name: str) -> None:
+        self.client = node.create_client(service_type, name)
+        self._until_ready: list[tuple[float, Future]] = []  # (since, future): True once the world answers
+        self._answers: list[tuple[float, Future]] = []  # (since, the call's future)
+        node.create_timer(0.05, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def ready(self) -> bool:
+        return self.client.service_is_ready()
+
+    async def call(self, request: Any) -> Any | None:
+        """The world's response, or None when it does not answer in time."""
+        if not self.ready():
+            reached = Future()
+            self._until_ready.append((time.monotonic(), reached))
+            if not await reached:
+                return None
+        answer = self.client.call_async(request)
+        self._answers.append((time.monotonic(), answer))
+        return await answer
+
+    def _check(self) -> None:
+        now, ready = time.monotonic(), self.ready()
+        for since, future in self._until_ready:
+            if not future.done() and (ready or now - since > WORLD_PATIENCE):
+                future.set_result(ready)
+        for since, future in self._answers:
+            if now - since > WORLD_PATIENCE:
+                future.cancel()  # its awaiter gets None; the client forgets the request
+        self._until_ready = [(t, f) for t, f in self._until_ready if not f.done()]
+        self._answers = [(t, f) for t, f in self._answers if not (f.done() or f.cancelled())]

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2, PointField
@@ -75,17 +75,12 @@ class SimVi(Node):
         self.progress_pub = self.create_publisher(SimScanProgress, sim.SCAN_PROGRESS, sim.SCAN_PROGRESS_QOS)
         self.cloud_pub = self.create_publisher(PointCloud2, "camera/depth/points", CAMERA)
         self.create_subscription(TileStateArray, "/tile_states", self.on_verdict, 10)
-        # served from the start: the explorer's client and this server discover each other early
+        # served from the start: the explorer's client and this server discover each other early (the
+        # base needs no answer of the world: where it will stand is kept for the world, see MOTION_QOS)
         self.server = ActionServer(self, NavigateTo, "navigate_to", execute_callback=self.navigate,
-                                   goal_callback=self.accept, cancel_callback=lambda _handle: CancelResponse.ACCEPT)
+                                   cancel_callback=lambda _handle: CancelResponse.ACCEPT)
         self.get_logger().info(f"serving {self.resolve_topic_name('navigate_to')} and the Kinect on "
                                f"{self.resolve_topic_name('camera/depth/points')}")
-
-    def accept(self, _goal: NavigateTo.Goal) -> GoalResponse:
-        if not self.world.service_is_ready():
-            self.get_logger().warn(f"the world does not answer on {sim.SNAPSHOT} yet: refusing a navigate_to goal")
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
 
     # --- the base -----------------------------------------------------------------------------
     async def navigate(self, handle: Any) -> NavigateTo.Result:
