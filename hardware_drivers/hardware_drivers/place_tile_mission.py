@@ -18,9 +18,9 @@ tiles." One mission, in the phases of the PlaceTile action:
 Failures end the mission with a result code and one line: FAILED_NAVIGATION (no pose, timeout,
 bumper or wheel drop, goal out of reach from where the base stopped), FAILED_NO_TILE, FAILED_GRASP
 (tile out of the arm's reach, gripper closed on nothing, tile dropped), FAILED_HARDWARE (a device
-stopped answering or reports a fault, or the arm did not follow a step sent twice: an arm step that
-no joint starts on within ``arm_stall_time``, or that does not arrive, is sent once more), CANCELED.
-The wheels are stopped on every exit.
+stopped answering or reports a fault for ``fault_grace``, the wheels stopped meanwhile; or the arm
+did not follow a step sent twice: a step no joint starts on within ``arm_stall_time``, or that does
+not arrive, is sent once more), CANCELED. The wheels are stopped on every exit.
 
 The robot is reached through :class:`M3Hardware`, so the same mission runs on the real drivers'
 topics or on anything else that provides them.
@@ -32,7 +32,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,6 +47,8 @@ from hardware_drivers.tile_localization import (
     find_tile,
     rotational_symmetry,
 )
+
+T = TypeVar("T")
 
 
 class Phase(IntEnum):
@@ -126,6 +128,7 @@ class MissionConfig:
     arm_timeout: float = 6.0  # s beyond a move's planned duration
     arm_stall_time: float = 1.5  # s after a command within which some joint must start moving
     arm_attempts: int = 2  # an arm step is sent this often before the mission fails
+    fault_grace: float = 1.0  # s a device fault may last (wheels stopped) before the mission fails
     grasp_margin: float = 0.08  # rad: the gripper must stop this far from fully closed
     navigation: GoToPoseParams = field(default_factory=GoToPoseParams)
     navigation_timeout: float = 90.0  # s per drive
@@ -355,13 +358,41 @@ class PlaceTileMission:
         self.feedback(self.phase, max(0.0, min(1.0, progress)), self.hw.map_pose())
 
     def _check(self) -> None:
+        self._check_canceled()
+        fault = self.hw.fault()
+        if fault:
+            self._ride_out(fault, self.hw.fault)
+
+    def _check_canceled(self) -> None:
         if self.hw.canceled():
             self.hw.stop()
             raise MissionFailedError(Outcome.CANCELED, "canceled")
-        fault = self.hw.fault()
-        if fault:
-            self.hw.stop()
-            raise MissionFailedError(Outcome.FAILED_HARDWARE, fault)
+
+    def _ride_out(self, problem: str, current_problem: Callable[[], str | None]) -> None:
+        """Wait, wheels stopped, for a problem to clear; it ends the mission once it lasts
+        ``fault_grace``. A device, or this process, that was too busy to report for a moment is no
+        broken device: a placement is not given up for it."""
+        self.hw.stop()
+        deadline = self.hw.now() + self.config.fault_grace
+        while problem:
+            if self.hw.now() > deadline:
+                raise MissionFailedError(Outcome.FAILED_HARDWARE, problem)
+            self.hw.sleep(self.config.control_period)
+            self._check_canceled()
+            problem = current_problem()
+        self.log(f"going on: the problem cleared within {self.config.fault_grace:g} s")
+
+    def _fresh(self, read: Callable[[], T | None], problem: str) -> T:
+        """What `read` gives; while it gives nothing, the mission rides it out as a fault."""
+        found = read()
+        if found is None:
+            def missing() -> str | None:
+                nonlocal found
+                found = read()
+                return problem if found is None else None
+
+            self._ride_out(problem, missing)
+        return found
 
     def _wait_for_pose(self) -> Pose2D:
         """The first pose, once every device is heard from (they may still be starting up)."""
@@ -407,17 +438,16 @@ class PlaceTileMission:
                 return self._pose()
 
     def _pose(self) -> Pose2D:
-        pose = self.hw.map_pose()
-        if pose is None:
-            raise MissionFailedError(Outcome.FAILED_HARDWARE, "lost the base's pose (odometry stopped)")
-        return pose
+        return self._fresh(self.hw.map_pose, "lost the base's pose (odometry stopped)")
 
     def _joints(self) -> Mapping[str, tuple[float, float]]:
-        joints = self.hw.joints()
         needed = (*self.config.arm_joints, self.config.gripper_joint)
-        if joints is None or any(n not in joints for n in needed):
-            raise MissionFailedError(Outcome.FAILED_HARDWARE, "no fresh joint states from the arm")
-        return joints
+
+        def complete() -> Mapping[str, tuple[float, float]] | None:
+            joints = self.hw.joints()
+            return joints if joints is not None and all(n in joints for n in needed) else None
+
+        return self._fresh(complete, "no fresh joint states from the arm")
 
     def _drive_to(self, goal: Pose2D, what: str, report: bool = True) -> None:
         cfg = self.config

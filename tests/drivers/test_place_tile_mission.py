@@ -37,6 +37,9 @@ class SimulatedArm:
         self.lost_commands = lost_commands
         self.gripper_stop = gripper_stop
         self.speed = speed
+        self.fault_between = (0.0, 0.0)  # (from, to): the times a device fault is reported
+        self.no_joints_between = (0.0, 0.0)  # the times no fresh joint states are at hand
+        self.stops = 0
 
     def now(self) -> float:
         return self.time
@@ -59,12 +62,14 @@ class SimulatedArm:
         pass
 
     def stop(self) -> None:
-        pass
+        self.stops += 1
 
     def scan_after(self, stamp: float, timeout: float) -> None:
         return None
 
-    def joints(self) -> dict[str, tuple[float, float]]:
+    def joints(self) -> dict[str, tuple[float, float]] | None:
+        if self.no_joints_between[0] <= self.time < self.no_joints_between[1]:
+            return None
         return {n: (self.positions[n], self.velocities[n]) for n in JOINTS}
 
     def move_joints(self, goals: dict[str, float], duration: float) -> None:
@@ -77,7 +82,9 @@ class SimulatedArm:
     def hazard(self) -> None:
         return None
 
-    def fault(self) -> None:
+    def fault(self) -> str | None:
+        if self.fault_between[0] <= self.time < self.fault_between[1]:
+            return "create_base: no odom for 1 s (base not answering?)"
         return None
 
     def canceled(self) -> bool:
@@ -154,3 +161,34 @@ def test_a_gripper_that_never_closes_fails_instead_of_passing_for_a_grasp() -> N
         mission(arm, [])._close_gripper()
     assert failure.value.outcome == Outcome.FAILED_HARDWARE
     assert failure.value.message == "the gripper did not start closing within 1.5 s (goal sent 2 times)"
+
+
+def test_a_fault_that_clears_within_the_grace_stops_the_wheels_and_the_mission_goes_on() -> None:
+    arm = SimulatedArm()
+    arm.fault_between = (arm.time + 0.2, arm.time + 0.2 + CONFIG.fault_grace * 0.6)  # a busy host
+    arm.no_joints_between = (arm.time + 1.5, arm.time + 1.8)
+    log: list[str] = []
+    mission(arm, log)._move_arm(CARRY, "carry pose")
+    assert arm.stops == 2
+    assert log == [f"going on: the problem cleared within {CONFIG.fault_grace:g} s"] * 2
+
+
+def test_a_fault_that_lasts_ends_the_mission_with_it() -> None:
+    arm = SimulatedArm()
+    start = arm.time
+    arm.fault_between = (start + 0.2, start + 60.0)
+    with pytest.raises(MissionFailedError) as failure:
+        mission(arm, [])._move_arm(CARRY, "carry pose")
+    assert failure.value.outcome == Outcome.FAILED_HARDWARE
+    assert failure.value.message == "create_base: no odom for 1 s (base not answering?)"
+    assert arm.time - (start + 0.2) == pytest.approx(CONFIG.fault_grace, abs=2 * CONFIG.control_period)
+    assert arm.stops >= 1
+
+
+def test_joint_states_that_stay_away_end_the_mission() -> None:
+    arm = SimulatedArm()
+    arm.no_joints_between = (arm.time + 0.2, arm.time + 60.0)
+    with pytest.raises(MissionFailedError) as failure:
+        mission(arm, [])._move_arm(CARRY, "carry pose")
+    assert (failure.value.outcome, failure.value.message) == (Outcome.FAILED_HARDWARE,
+                                                              "no fresh joint states from the arm")
