@@ -6,6 +6,7 @@ time of the world they show, beside the overhead poses of that time."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -23,6 +24,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import String
 
@@ -147,6 +149,8 @@ def test_a_placement_has_the_old_phases_duration_result_and_events(sim: Simulato
             robots = sim.snapshot.call_async(SimSnapshot.Request())
         seen.append((phase, [robots]))
 
+    ticks: list[float] = []
+    sim.node.create_subscription(ClockMsg, "/clock", lambda m: ticks.append(stamp_ns(m.clock) * 1e-9), 100)
     result = sim.place_tile(1, on_feedback)
     assert result.error_code == PlaceTile.Result.SUCCEEDED, result.message
     motion = RobotBodySettings().motion()
@@ -156,7 +160,9 @@ def test_a_placement_has_the_old_phases_duration_result_and_events(sim: Simulato
     phases = placement_phases(motion, START, cache, (tile.position[0], tile.position[1]), footprints)
     assert [phase for phase, _ in seen] == [1, 2, 3, 4, 5, 6]
     planned = sum(p.duration for p in phases)
-    assert planned <= result.duration <= planned + len(phases) * TICK + 1.0
+    # a phase ends at the first tick of /clock after its time: on a loaded host ticks come further apart
+    longest_tick = max(b - a for a, b in itertools.pairwise(ticks))
+    assert planned <= result.duration <= planned + len(phases) * max(longest_tick, TICK) + 0.1
     kinds = [(e["event"], e["tile"]) for e in sim.events if e["event"] in PLACEMENT_EVENTS]
     assert kinds == [("place_started", 1), ("placed", 1)]
     # the world shows the robot where it truly stands: at the cache while it drives off with the tile
@@ -172,8 +178,7 @@ def test_a_placement_on_absent_supports_is_refused_naming_them(sim: Simulator) -
     result = sim.place_tile(4)  # an octagon on tiles 1, 2, 3 and 6; only 1 is there
     assert result.error_code == PlaceTile.Result.FAILED_PRECONDITION
     assert list(result.missing_supports) == [2, 3, 6] and "support 2, 3, 6" in result.message
-    last = [e for e in sim.events if e["event"] in PLACEMENT_EVENTS][-1]
-    assert last["event"] == "refused" and last["tile"] == 4
+    assert sim.spin_until(lambda: any(e["event"] == "refused" and e["tile"] == 4 for e in sim.events), 10.0)
     assert sim.place_tile(99, like=1).error_code == PlaceTile.Result.FAILED_PRECONDITION
 
 

@@ -46,7 +46,7 @@ CLOCK_IN = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)  # every
 MOTION_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 SCAN_PROGRESS_QOS = QoSProfile(depth=20, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                                reliability=ReliabilityPolicy.RELIABLE)
-WORLD_PATIENCE = 10.0  # s of wall time a body waits for the world to answer before giving up
+WORLD_PATIENCE = 30.0  # s of wall time a body waits for the world to answer before giving up
 EVENTS_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
 
