@@ -8,7 +8,9 @@ effort N·m estimated from the servo's load) and ``/diagnostics`` (joint errors:
 overheating, input voltage..., joints not answering). Accepts
 
 * ``joint_trajectory`` (trajectory_msgs/JointTrajectory): points run one after the other, each
-  reached at its ``time_from_start`` when the joints' speed limits allow (slower otherwise);
+  reached at its ``time_from_start`` when the joints' speed limits allow (slower otherwise: the
+  next point waits until the arm is within ``goal_tolerance`` of this one, at most
+  ``trajectory_wait`` beyond its time);
   a trajectory with a point outside the joint limits is refused as a whole (one log line);
 * ``named_pose`` (std_msgs/String): a pose of ``named_pose_names`` (``config/crustcrawler_arm.yaml``),
   or ``gripper_open`` / ``gripper_closed``;
@@ -114,6 +116,7 @@ class CrustCrawlerArmNode(Node):
         self._trajectory: list[tuple[float, dict[str, float]]] = []  # (time from start, goals)
         self._trajectory_start = 0.0
         self._point_time = 0.0
+        self._point_goals: dict[str, float] = {}  # the point sent last
         self._published_sequence = 0
         self.create_timer(1.0 / rate, self.publish_joint_states)
         self.create_timer(0.02, self.advance_trajectory)
@@ -141,18 +144,30 @@ class CrustCrawlerArmNode(Node):
         self._trajectory = points
         self._trajectory_start = self._now()
         self._point_time = 0.0
+        self._point_goals = {}
         self.advance_trajectory()
 
     def advance_trajectory(self) -> None:
         if not self._trajectory:
             return
-        elapsed = self._now() - self._trajectory_start
-        t, goals = self._trajectory[0]
-        # send the next point as soon as the previous one's time has come
-        if elapsed + 1e-3 >= self._point_time:
-            self._trajectory.pop(0)
-            self.driver.set_goals(goals, duration=max(t - self._point_time, 0.05))
-            self._point_time = t
+        late = self._now() - self._trajectory_start - self._point_time
+        if late + 1e-3 < 0:
+            return  # the point sent last is due later
+        # an arm that lags behind (speed limits, a busy bus) finishes the point first: sending the
+        # next one at once would cut the corner and skip it; a joint held up for good (the gripper
+        # on an object) lets the trajectory go on after trajectory_wait
+        if not self._point_reached() and late < self.driver.config.trajectory_wait:
+            return
+        t, goals = self._trajectory.pop(0)
+        self.driver.set_goals(goals, duration=max(t - self._point_time, 0.05))
+        self._point_time = t
+        self._point_goals = goals
+
+    def _point_reached(self) -> bool:
+        readings = self.driver.readings()[1]
+        tolerance = self.driver.config.goal_tolerance
+        return all(name in readings and abs(readings[name].position - angle) <= tolerance
+                   for name, angle in self._point_goals.items())
 
     def on_named_pose(self, msg: String) -> None:
         name = msg.data.strip()

@@ -85,7 +85,8 @@ class ArmConfig:
     joint_silent_reads: int = 3
     joint_silent_timeout: float = 0.5  # s
     goal_resends: int = 3  # re-sends of a goal a servo did not take, before reporting it
-    goal_tolerance: float = 0.02  # rad
+    goal_tolerance: float = 0.02  # rad, a trajectory point counts as reached this close
+    trajectory_wait: float = 2.0  # s a lagging trajectory point is waited for before the next is sent
 
     def validate(self) -> None:
         problems = [p for p in (j.problem() for j in self.joints) if p]
@@ -97,7 +98,8 @@ class ArmConfig:
             problems.append(f"joint names repeat: {names}")
         if len(set(ids)) != len(ids):
             problems.append(f"servo ids repeat: {ids}")
-        for name in ("rate", "reply_timeout", "retry_interval", "silent_timeout", "joint_silent_timeout"):
+        for name in ("rate", "reply_timeout", "retry_interval", "silent_timeout", "joint_silent_timeout",
+                     "trajectory_wait", "goal_tolerance"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 problems.append(f"{name} must be positive, got {value}")
