@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import importlib
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -32,9 +33,22 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
 
+def _drop_signalled_unraisable(unraisable: Any) -> None:
+    """A KeyboardInterrupt raised where Python cannot pass it on (an import lock's clean-up
+    callback, a finaliser) is printed as "Exception ignored in ..." with a traceback; the signal is
+    recorded in `signalled` and acted on by `raise_if_signalled`, so it is dropped quietly."""
+    if isinstance(unraisable.exc_value, KeyboardInterrupt) and signalled.is_set():
+        return
+    _report_unraisable(unraisable)
+
+
+_report_unraisable = sys.unraisablehook
+
+
 def raise_keyboard_interrupt_on_signals() -> None:
     """SIGINT and SIGTERM raise KeyboardInterrupt in the main thread (also SIGINT when the parent
     left it ignored, as a shell does for background jobs)."""
+    sys.unraisablehook = _drop_signalled_unraisable
     signal.signal(signal.SIGINT, _interrupt)
     signal.signal(signal.SIGTERM, _interrupt)
 
