@@ -12,6 +12,7 @@ import shutil
 import signal
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -145,28 +146,38 @@ def _processes_of_run() -> dict[str, list[int]]:
     return runs
 
 
-def test_ctrl_c_stops_the_run_and_leaves_no_process(tmp_path: Path) -> None:
+def interrupt_a_run(tmp_path: Path, *options: str, nodes: int, running: float,
+                    check_running: Callable[[], None] = lambda: None) -> tuple[set[str], str]:
+    """Start an experiment, wait until `nodes` of its processes run (then `check_running()`), Ctrl-C it
+    `running` s later.
+    Returns the runs that existed before it, and its stderr; asserts it stopped as Ctrl-C asks."""
     before = set(_processes_of_run())
     command = [str(REPO / "install/tiling_sim/lib/tiling_sim/experiment"), "--structure",
-               str(STRUCTURES / "paper_14.yaml"), "--report", str(tmp_path), "--trials", "1", "--quiet"]
+               str(STRUCTURES / "paper_14.yaml"), "--report", str(tmp_path), "--trials", "1", "--quiet", *options]
     runner = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 60
         children: list[int] = []
-        while time.monotonic() < deadline and len(children) < 5:
+        while time.monotonic() < deadline and len(children) < nodes:
             children = [p for run, pids in _processes_of_run().items() if run not in before for p in pids]
             time.sleep(0.2)
-        assert len(children) >= 5, "the run's nodes did not start"
-        time.sleep(2.0)
+        assert len(children) >= nodes, "the run's nodes did not start"
+        check_running()
+        time.sleep(running)
         runner.send_signal(signal.SIGINT)
         _, stderr = runner.communicate(timeout=30)
     finally:
         if runner.poll() is None:
             runner.kill()
-    assert runner.returncode == 130
+    assert runner.returncode == 130, stderr
     assert "interrupted: every node was stopped" in stderr and "Traceback" not in stderr
     time.sleep(0.5)
     assert [p for run, pids in _processes_of_run().items() if run not in before for p in pids] == []
+    return before, stderr
+
+
+def test_ctrl_c_stops_the_run_and_leaves_no_process(tmp_path: Path) -> None:
+    interrupt_a_run(tmp_path, nodes=5, running=2.0)
 
 
 def test_runner_failure_leaves_no_process(experiment) -> None:  # type: ignore[no-untyped-def]
@@ -200,28 +211,10 @@ def test_bad_command_lines_get_one_clear_error_and_start_nothing(tmp_path: Path)
 @pytest.mark.skipif(not virtual_hosts_available(), reason=virtual_hosts_unavailable_reason())
 def test_ctrl_c_with_hosts_removes_every_host_and_process(tmp_path: Path) -> None:
     """With --hosts netns, Ctrl-C in the middle of a trial leaves no node and no namespace keeper."""
-    before = set(_processes_of_run())
     keepers_before = set(keeper_processes())
-    command = [str(REPO / "install/tiling_sim/lib/tiling_sim/experiment"), "--structure",
-               str(STRUCTURES / "paper_14.yaml"), "--report", str(tmp_path), "--trials", "1", "--quiet",
-               "--hosts", "netns", "--link-loss", "5", "--link-rate", "5"]
-    runner = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 60
-        children: list[int] = []
-        while time.monotonic() < deadline and len(children) < 8:
-            children = [p for run, pids in _processes_of_run().items() if run not in before for p in pids]
-            time.sleep(0.2)
-        assert len(children) >= 8, "the run's nodes did not start"
+    def every_host_is_up() -> None:
         assert len(set(keeper_processes()) - keepers_before) >= 6  # hub, base, world, observer, robots, vi
-        time.sleep(3.0)
-        runner.send_signal(signal.SIGINT)
-        _, stderr = runner.communicate(timeout=30)
-    finally:
-        if runner.poll() is None:
-            runner.kill()
-    assert runner.returncode == 130, stderr
-    assert "interrupted: every node was stopped" in stderr and "Traceback" not in stderr
-    time.sleep(0.5)
-    assert [p for run, pids in _processes_of_run().items() if run not in before for p in pids] == []
+
+    interrupt_a_run(tmp_path, "--hosts", "netns", "--link-loss", "5", "--link-rate", "5", nodes=8, running=3.0,
+                    check_running=every_host_is_up)
     assert set(keeper_processes()) - keepers_before == set()
