@@ -30,9 +30,9 @@ setup(
             "hokuyo_urg = hardware_drivers.executables:hokuyo_urg",
             "m3_robot = hardware_drivers.executables:m3_robot",
             "base_navigator = hardware_drivers.executables:base_navigator",
-            "create_emulator = hardware_drivers.emulators.create_emulator:main",
-            "dynamixel_emulator = hardware_drivers.emulators.dynamixel_emulator:main",
-            "urg_emulator = hardware_drivers.emulators.urg_emulator:main",
+            "create_emulator = hardware_drivers.executables:create_emulator",
+            "dynamixel_emulator = hardware_drivers.executables:dynamixel_emulator",
+            "urg_emulator = hardware_drivers.executables:urg_emulator",
         ],
     },
 )

@@ -20,9 +20,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "plan = planner_node.plan_command:main",
+            "plan = planner_node.executables:plan",
             "planner_node = planner_node.executables:planner_node",
-            "benchmark = planner_node.benchmark:main",
+            "benchmark = planner_node.executables:benchmark",
         ],
     },
 )

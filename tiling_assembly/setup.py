@@ -20,7 +20,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "validate = tiling_assembly.validate:main",
+            "validate = tiling_assembly.executables:validate",
         ],
     },
 )

@@ -22,9 +22,9 @@ setup(
             "sim_robot = tiling_sim.executables:sim_robot",
             "sim_vi = tiling_sim.executables:sim_vi",
             "experiment = tiling_sim.executables:experiment",
-            "replay_bag = tiling_sim.replay_bag:main",
-            "vi_accuracy = tiling_sim.vi_accuracy:main",
-            "vi_benchmark = tiling_sim.vi_benchmark:main",
+            "replay_bag = tiling_sim.executables:replay_bag",
+            "vi_accuracy = tiling_sim.executables:vi_accuracy",
+            "vi_benchmark = tiling_sim.executables:vi_benchmark",
         ],
     },
 )

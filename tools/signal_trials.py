@@ -104,6 +104,7 @@ class Scenario:
     startup_span: float = 3.0
     clean_exit_codes: tuple[int, ...] = (0,)
     extra_noise: tuple[str, ...] = ()
+    may_finish_first: bool = False  # a command-line tool whose work can end before the signal comes
 
     @property
     def executable(self) -> str:
@@ -167,9 +168,32 @@ def scenarios() -> list[Scenario]:
                                         *params_file("hardware_drivers"))),
         Scenario("base_navigator (driving)", node("hardware_drivers", "base_navigator", "-r", "__ns:=/robot1",
                                                   *params_file("hardware_drivers")), helpers=(*base, navigating)),
+        *command_line_tools(),
         Scenario("experiment", Command("tiling_sim", "experiment", (
             "--trials", "1", "--removals", "1", "--no-baseline", "--quiet", "--report", f"{TRIAL_DIR}/report")),
             startup_span=10.0, clean_exit_codes=(0, 130), extra_noise=("did not stop cleanly",)),
+    ]
+
+
+def command_line_tools() -> list[Scenario]:
+    """The offline tools a user runs by hand and stops with Ctrl-C: an interruption exits 130 (0 for
+    the device emulators, which stand in for hardware); a short tool may finish first."""
+    def tool(name: str, package: str, executable: str, *arguments: str, quick: bool = False) -> Scenario:
+        return Scenario(name, Command(package, executable, arguments), clean_exit_codes=(0, 130),
+                        startup_span=2.0, may_finish_first=quick)
+
+    return [
+        tool("plan", "planner_node", "plan", "--structure", STRUCTURE, "--robots", "2", quick=True),
+        tool("benchmark", "planner_node", "benchmark", "--sizes", "200", "2000", "--repeat", "3"),
+        tool("validate", "tiling_assembly", "validate", STRUCTURE, quick=True),
+        tool("classify", "vi_node", "classify", "--structure", STRUCTURE, "--bag", BAG, quick=True),
+        tool("replay_bag (waiting for a subscriber)", "tiling_sim", "replay_bag", "--bag", BAG,
+             "--wait-subscribers", "60"),
+        tool("vi_accuracy", "tiling_sim", "vi_accuracy", "--scenes", "40", "--png", f"{TRIAL_DIR}/accuracy.png"),
+        tool("vi_benchmark", "tiling_sim", "vi_benchmark", "--scans", "4", "--repeat", "5"),
+        *(Scenario(f"{kind}_emulator", Command("hardware_drivers", f"{kind}_emulator",
+                                               ("--port", f"{TRIAL_DIR}/{kind}")), startup_span=2.0)
+          for kind in ("create", "dynamixel", "urg")),
     ]
 
 
@@ -298,10 +322,12 @@ class TrialResult:
 
     @property
     def outcome(self) -> str:
-        """clean, failed, or too early: failed, but signalled before the process could catch signals
-        (the interpreter or the script setuptools generates was still starting: no code of ours ran)."""
+        """clean, finished first (a tool done before the signal, cleanly), failed, or too early: failed,
+        but signalled before the process could catch signals (the interpreter or the script setuptools
+        generates was still starting: no code of ours ran)."""
         if self.failure is None:
-            return "clean"
+            return "clean" if self.stop_seconds is not None or not self.plan.scenario.may_finish_first \
+                else "finished first"
         return "failed" if self.caught_signals else "too early"
 
 
@@ -501,6 +527,8 @@ def signal_and_judge(plan: TrialPlan, settings: TrialSettings, target: subproces
     try:
         target.wait(plan.delay)
         code = target.returncode
+        if plan.scenario.may_finish_first:
+            return TrialResult(plan, code, None, judge_exit(plan.scenario, code, log_path), log_path)
         return TrialResult(plan, code, None, f"exited by itself (code {code}) before the signal: "
                            f"{last_line(log_path)}", log_path)
     except subprocess.TimeoutExpired:
@@ -668,7 +696,8 @@ def describe(result: TrialResult, done: int, total: int) -> str:
     return f"[{done:4d}/{total}] {result.plan.label}{load}: {outcome}"
 
 
-COLUMNS = ("trials", "SIGINT", "SIGTERM", "load", "twice", "clean", "failed", "too early")
+OUTCOMES = ("clean", "finished first", "failed", "too early")
+COLUMNS = ("trials", "SIGINT", "SIGTERM", "load", "twice", *OUTCOMES)
 
 
 def counts(results: Sequence[TrialResult]) -> tuple[int, ...]:
@@ -676,7 +705,7 @@ def counts(results: Sequence[TrialResult]) -> tuple[int, ...]:
     return (len(results), sum(r.plan.signal == signal.SIGINT for r in results),
             sum(r.plan.signal == signal.SIGTERM for r in results), sum(r.plan.under_load for r in results),
             sum(r.plan.again_after is not None for r in results),
-            *(sum(r.outcome == outcome for r in results) for outcome in ("clean", "failed", "too early")))
+            *(sum(r.outcome == outcome for r in results) for outcome in OUTCOMES))
 
 
 def counts_table(results: Sequence[TrialResult], key: Callable[[TrialResult], str], title: str) -> list[str]:
@@ -694,7 +723,7 @@ def table(results: Sequence[TrialResult]) -> str:
     signals too early for any code of ours; then every trial that did not stop cleanly."""
     rows = counts_table(results, lambda r: r.plan.scenario.name, "scenario")
     stops = [r.stop_seconds for r in results if r.stop_seconds is not None]
-    unclean = [r for r in results if r.outcome != "clean"]
+    unclean = [r for r in results if r.outcome in ("failed", "too early")]
     failed = sum(r.outcome == "failed" for r in results)
     rows.append(f"{len(results)} trials, {failed} failed, {len(unclean) - failed} signalled too early; "
                 f"slowest clean stop {max(stops, default=0.0):.1f} s after the signal")

@@ -24,7 +24,7 @@ setup(
     entry_points={
         "console_scripts": [
             "vi_node = vi_node.executables:vi_node",
-            "classify = vi_node.classify_bag:main",
+            "classify = vi_node.executables:classify",
             "vi_explorer = vi_node.executables:vi_explorer",
         ],
     },

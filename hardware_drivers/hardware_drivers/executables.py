@@ -23,3 +23,15 @@ def m3_robot() -> int:
 
 def base_navigator() -> int:
     return run_executable("hardware_drivers.base_navigator_node")
+
+
+def create_emulator() -> int:
+    return run_executable("hardware_drivers.emulators.create_emulator")
+
+
+def dynamixel_emulator() -> int:
+    return run_executable("hardware_drivers.emulators.dynamixel_emulator")
+
+
+def urg_emulator() -> int:
+    return run_executable("hardware_drivers.emulators.urg_emulator")

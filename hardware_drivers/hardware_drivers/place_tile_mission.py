@@ -129,6 +129,9 @@ class MissionConfig:
     arm_stall_time: float = 1.5  # s after a command within which some joint must start moving
     arm_attempts: int = 2  # an arm step is sent this often before the mission fails
     fault_grace: float = 1.0  # s a device fault may last (wheels stopped) before the mission fails
+    # s without a laser scan before the mission fails: long enough to ride out one reconnect of
+    # the laser driver (its scan_timeout, retry_interval and the SCIP handshake take about 2 s)
+    scan_wait: float = 5.0
     grasp_margin: float = 0.08  # rad: the gripper must stop this far from fully closed
     navigation: GoToPoseParams = field(default_factory=GoToPoseParams)
     navigation_timeout: float = 90.0  # s per drive
@@ -233,10 +236,10 @@ class PlaceTileMission:
             reason = "no scan"
             for _ in range(cfg.scans_per_attempt):
                 self._check()
-                scan = self.hw.scan_after(self.hw.now(), timeout=2.0)
+                scan = self.hw.scan_after(self.hw.now(), timeout=cfg.scan_wait)
                 if scan is None:
                     raise MissionFailedError(Outcome.FAILED_HARDWARE,
-                                         "no laser scan for 2 s while locating the tile")
+                                             f"no laser scan for {cfg.scan_wait:g} s while locating the tile")
                 if self._moved_since(pose):
                     # the scan and the pose would disagree: wait for the base to stop, then look again
                     pose = self._settled_pose()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import re
 import time
+from collections.abc import Callable
 
 import pytest
 from processes import Emulator, NodeProcess
@@ -108,7 +109,9 @@ def _send(client: ActionClient, goal: PlaceTile.Goal, feedback: list):  # type: 
 
 
 def _run_goal(client: ActionClient, goal: PlaceTile.Goal, timeout: float,
-              cancel_in_phase: int | None = None) -> tuple[PlaceTile.Result, list, float | None]:
+              cancel_in_phase: int | None = None,
+              on_phase: tuple[int, Callable[[], None]] | None = None,
+              ) -> tuple[PlaceTile.Result, list, float | None]:
     feedback: list[PlaceTile.Feedback] = []
     handle = _send(client, goal, feedback)
     assert handle.accepted
@@ -118,6 +121,9 @@ def _run_goal(client: ActionClient, goal: PlaceTile.Goal, timeout: float,
     while not result_future.done():
         assert time.monotonic() < deadline, f"no result within {timeout} s; last phases {feedback[-3:]}"
         latest = feedback[-1] if feedback else None
+        if on_phase is not None and latest is not None and latest.phase == on_phase[0]:
+            on_phase[1]()
+            on_phase = None
         if cancel_in_phase is not None and canceled_at is None and latest is not None \
                 and latest.phase == cancel_in_phase and latest.phase_progress > 0.1:
             canceled_at = time.monotonic()
@@ -179,6 +185,17 @@ def test_no_tile_at_the_cache_fails_with_no_tile(m3) -> None:
     assert "\n" not in result.message
     assert feedback[-1].phase == Phase.LOCATING_TILE
     assert Outcome.FAILED_NO_TILE == PlaceTile.Result.FAILED_NO_TILE
+
+
+def test_a_laser_that_reconnects_while_the_tile_is_located_does_not_fail_the_placement(m3) -> None:
+    """The laser falls silent as the mission starts looking: hokuyo_urg drops the connection after
+    its scan_timeout and reconnects; the mission waits for the scans to come back."""
+    reconnects_before = m3["nodes"]["hokuyo_urg"].log().count("connected to the")
+    result, feedback, _ = _run_goal(m3["client"], _goal(), timeout=120.0,
+                                    on_phase=(Phase.LOCATING_TILE, lambda: m3["urg"].send("silence 2.5")))
+    assert result.error_code == PlaceTile.Result.SUCCEEDED, result.message
+    m3["nodes"]["hokuyo_urg"].wait_for_log("connected to the", timeout=10.0, count=reconnects_before + 1)
+    assert Phase.PICKING in [f.phase for f in feedback]
 
 
 def test_a_gripper_closing_on_nothing_fails_with_grasp_error(m3) -> None:

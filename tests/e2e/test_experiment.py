@@ -209,6 +209,26 @@ def test_bad_command_lines_get_one_clear_error_and_start_nothing(tmp_path: Path)
 
 
 @pytest.mark.skipif(not virtual_hosts_available(), reason=virtual_hosts_unavailable_reason())
+@pytest.mark.skipif(shutil.which("capsh") is None, reason="capsh (Debian libcap2-bin) is not installed")
+def test_hosts_without_network_capabilities_get_one_line_and_leave_nothing(tmp_path: Path) -> None:
+    """Root in a container without CAP_NET_ADMIN and CAP_SYS_ADMIN: the kernel refuses the first
+    namespace; one line, exit 2, no report, no namespace keeper or node left."""
+    before = _processes_of_run()
+    experiment = REPO / "install/tiling_sim/lib/tiling_sim/experiment"
+    result = subprocess.run(
+        ["capsh", "--drop=cap_net_admin,cap_sys_admin", "--", "-c",
+         f"exec {experiment} --hosts netns --trials 1 --report {tmp_path / 'report'}"],
+        cwd=REPO, capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.startswith("error: --hosts netns: could not create network namespaces")
+    assert result.stderr.count("\n") == 1 and "Operation not permitted" in result.stderr, result.stderr
+    assert not (tmp_path / "report").exists()
+    assert [p for run, pids in _processes_of_run().items() if run not in before for p in pids] == []
+    assert not [line for line in subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+                .splitlines() if "tiling" in line]
+
+
+@pytest.mark.skipif(not virtual_hosts_available(), reason=virtual_hosts_unavailable_reason())
 def test_ctrl_c_with_hosts_removes_every_host_and_process(tmp_path: Path) -> None:
     """With --hosts netns, Ctrl-C in the middle of a trial leaves no node and no namespace keeper."""
     keepers_before = set(keeper_processes())

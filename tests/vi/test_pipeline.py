@@ -14,7 +14,7 @@ from tiling_sim.inspection_scenarios import Scene, ViewSettings, random_view, ro
 from tiling_sim.kinect import KINECT_V1_DEPTH, ClutterBox, KinectScene, KinectSimulator
 from vi_node.classify import TileState
 from vi_node.inspection_settings import InspectionSettings
-from vi_node.pipeline import InspectionPipeline
+from vi_node.pipeline import InspectionPipeline, InspectionStoppedError
 from vi_node.pose_prior import OverheadPose, pose_error
 
 PAPER = InspectionSettings().with_values({"mode": "paper"})
@@ -54,6 +54,25 @@ def test_alignment_from_the_paper_error_bounds_lands_within_1cm_and_1deg(name: s
     assert set(result.timings) >= {"prior", "floor", "candidates", "coarse", "icp", "raycast", "classify"}
     if mode == "default":
         assert {"evidence", "misplacement"} <= set(result.timings)
+
+
+def test_a_stop_request_ends_the_inspection_at_the_next_stage() -> None:
+    """What vi_node does at Ctrl-C: it asks the scan under way to stop rather than finish it."""
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), ())
+    view = view_from(scene.centre, math.radians(-60.0), 1.0, np.random.default_rng(10))
+    cloud = KinectSimulator(seed=11).scan(scene.kinect_scene, view.camera)
+    pipeline = InspectionPipeline(paper, None, DEFAULT)
+    stages: list[int] = []
+
+    def stop_after_the_second_stage() -> bool:
+        stages.append(1)
+        return len(stages) >= 2
+
+    with pytest.raises(InspectionStoppedError, match="stopped after the prior stage"):
+        pipeline.inspect(cloud, OverheadPose(*view.overhead), stop_requested=stop_after_the_second_stage)
+    assert len(stages) == 2
+    assert pipeline.inspect(cloud, OverheadPose(*view.overhead), stop_requested=lambda: False).ok
 
 
 def test_paper_mode_finds_removed_large_tiles_and_reports_every_expected_tile() -> None:

@@ -125,3 +125,10 @@ def run_executable(module_name: str, interrupted_exit_code: int = 0) -> int:
         # (exit -2 or -15 after a clean stop). Ignored signals stay ignored.
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+
+def run_command(module_name: str) -> int:
+    """`run_executable` for a command-line tool (plan, classify, replay_bag, ...): an interruption,
+    also one while it still imports, exits 130 as shells report Ctrl-C; what the tool finished
+    before stays written (each tool writes its results as it goes or not at all)."""
+    return run_executable(module_name, interrupted_exit_code=130)

@@ -2,7 +2,7 @@
 module and the ROS libraries load: `ros2 launch` may stop a node while it still imports them
 (`tiling_assembly.interrupts`)."""
 
-from tiling_assembly.interrupts import run_executable
+from tiling_assembly.interrupts import run_command, run_executable
 
 
 def experiment() -> int:
@@ -20,3 +20,15 @@ def sim_robot() -> int:
 
 def sim_vi() -> int:
     return run_executable("tiling_sim.vi_body_node")
+
+
+def replay_bag() -> int:
+    return run_command("tiling_sim.replay_bag")
+
+
+def vi_accuracy() -> int:
+    return run_command("tiling_sim.vi_accuracy")
+
+
+def vi_benchmark() -> int:
+    return run_command("tiling_sim.vi_benchmark")

@@ -2,7 +2,7 @@
 module and the ROS libraries load: `ros2 launch` may stop a node while it still imports them
 (`tiling_assembly.interrupts`)."""
 
-from tiling_assembly.interrupts import run_executable
+from tiling_assembly.interrupts import run_command, run_executable
 
 
 def vi_node() -> int:
@@ -11,3 +11,7 @@ def vi_node() -> int:
 
 def vi_explorer() -> int:
     return run_executable("vi_node.explorer_node")
+
+
+def classify() -> int:
+    return run_command("vi_node.classify_bag")

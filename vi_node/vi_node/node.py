@@ -53,7 +53,7 @@ from vi_node.classify import TileState as State
 from vi_node.fusion import TileFusion, fuse_scan
 from vi_node.inspection_settings import InspectionSettings, SettingsError, parse_tile_ids
 from vi_node.misplacement import moved_tile
-from vi_node.pipeline import InspectionPipeline
+from vi_node.pipeline import InspectionPipeline, InspectionStoppedError
 from vi_node.point_cloud import CloudError, cloud_from_msg
 from vi_node.pose_matching import PoseBuffer, TeamPoses
 from vi_node.pose_prior import OverheadPose
@@ -316,7 +316,7 @@ class ViNode(Node):
             self.wake.notify()
 
     def stop_inspecting(self) -> None:
-        """Let the scan being inspected finish, then take no more (before the node is destroyed)."""
+        """End the inspection at its next stage and take no more scans (before the node is destroyed)."""
         with self.wake:
             self.closing = True
             self.wake.notify()
@@ -384,7 +384,9 @@ class ViNode(Node):
             self._unclassified(msg, DiagnosticStatus.ERROR, f"dropped a scan: {error}")
             return
         try:
-            result = self.pipeline.inspect(cloud, overhead, robots)
+            result = self.pipeline.inspect(cloud, overhead, robots, stop_requested=lambda: self.closing)
+        except InspectionStoppedError:
+            return
         except Exception as error:
             self.get_logger().error(f"inspection of a scan failed unexpectedly: {error!r}")
             self._unclassified(msg, DiagnosticStatus.ERROR, f"inspection failed unexpectedly: {error!r}")

@@ -75,15 +75,25 @@ class ExpectedModel:
         return len(self.tile_ids)
 
 
+class InspectionStoppedError(Exception):
+    """The caller asked the inspection to stop (its node is shutting down); raised between stages."""
+
+
 class _Timer:
-    def __init__(self) -> None:
+    """Each stage's time; between two stages, the point where a stop request ends the inspection
+    (a scan takes seconds on a loaded machine, a stage a fraction of that)."""
+
+    def __init__(self, stop_requested: Callable[[], bool] | None = None) -> None:
         self.timings: dict[str, float] = {}
         self._last = time.perf_counter()
+        self._stop_requested = stop_requested
 
     def lap(self, stage: str) -> None:
         now = time.perf_counter()
         self.timings[stage] = self.timings.get(stage, 0.0) + now - self._last
         self._last = now
+        if self._stop_requested is not None and self._stop_requested():
+            raise InspectionStoppedError(f"stopped after the {stage} stage")
 
 
 @dataclass
@@ -168,11 +178,13 @@ class InspectionPipeline:
 
     # ----------------------------------------------------------------------------------------------
     def inspect(
-        self, cloud: NDArray[np.float32], overhead: OverheadPose, robots: Sequence[OverheadPose] = ()
+        self, cloud: NDArray[np.float32], overhead: OverheadPose, robots: Sequence[OverheadPose] = (),
+        stop_requested: Callable[[], bool] | None = None,
     ) -> ScanResult:
         """Classify every tile of S_a from one organized cloud, the overhead pose of its time and
-        the overhead poses of the other robots (default mode: their points are left out)."""
-        scan, failure = self._start(cloud, overhead)
+        the overhead poses of the other robots (default mode: their points are left out).
+        `stop_requested` is asked between stages; once it says yes, `InspectionStoppedError` is raised."""
+        scan, failure = self._start(cloud, overhead, stop_requested)
         if scan is None:
             return failure
         if robots and not self.paper:
@@ -195,9 +207,10 @@ class InspectionPipeline:
         return self._judge_again_without_moved_tiles(scan, level=level, first=result)
 
     # -- stages -----------------------------------------------------------------------------------
-    def _start(self, cloud: NDArray[np.float32], overhead: OverheadPose) -> tuple[_Scan | None, ScanResult]:
+    def _start(self, cloud: NDArray[np.float32], overhead: OverheadPose,
+               stop_requested: Callable[[], bool] | None) -> tuple[_Scan | None, ScanResult]:
         """The scan with the camera of its resolution, or why it cannot be inspected."""
-        timer = _Timer()
+        timer = _Timer(stop_requested)
         problem = _cloud_problem(cloud)
         if problem:
             return None, ScanResult(ok=False, reason=problem, timings=timer.timings)
