@@ -25,6 +25,7 @@ setup(
             "replay_bag = tiling_sim.executables:replay_bag",
             "vi_accuracy = tiling_sim.executables:vi_accuracy",
             "vi_benchmark = tiling_sim.executables:vi_benchmark",
+            "classify_benchmark = tiling_sim.executables:classify_benchmark",
         ],
     },
 )

@@ -144,7 +144,7 @@ class AuctionNode(Node):
         declare("liveness_timeout", 1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
         declare("acceptance_timeout", 10.0, "s of wall-clock time without acceptance from a winner still heard "
                 "before its tile is auctioned again (a lost winner's tile goes back at once).")
-        declare("resend_period", 0.1, "s of wall-clock time between copies of an unanswered announcement or award.")
+        declare("resend_period", 0.05, "s of wall-clock time between copies of an unanswered announcement or award.")
         declare("lost_tile_grace", 60.0, "s (node clock) the tile in a lost robot's hands stays its own before "
                 "it is auctioned (out of reach, the robot may be placing it).")
         declare("status_period", 0.2, "s of wall-clock time between two /auction/status heartbeats.")

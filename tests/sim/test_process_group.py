@@ -81,3 +81,20 @@ def test_stop_reports_the_processes_that_did_not_exit_cleanly(tmp_path: Path) ->
     group.start("gone", ["true"])
     time.sleep(0.5)
     assert group.stop(grace=1.0) == {"crashes": -signal.SIGABRT, "deaf": -signal.SIGTERM}
+
+
+def test_a_hung_python_process_leaves_its_stacks_in_its_log(tmp_path: Path) -> None:
+    """What the experiment needs to find why a node did not stop: SIGABRT before SIGKILL, and the
+    node's faulthandler (PYTHONFAULTHANDLER) writes where every thread was."""
+    group = ProcessGroup(log_dir=tmp_path)
+    hung = ("import signal, time\n"
+            "signal.signal(signal.SIGINT, signal.SIG_IGN); signal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+            "def stuck_in_shutdown():\n    time.sleep(60)\n"
+            "print('up', flush=True); stuck_in_shutdown()\n")
+    group.start("hung", [sys.executable, "-c", hung], env={**os.environ, "PYTHONFAULTHANDLER": "1"})
+    deadline = time.monotonic() + 10.0
+    while "up" not in (tmp_path / "hung.log").read_text() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert group.stop(grace=0.3) == {"hung": -signal.SIGABRT}
+    log = (tmp_path / "hung.log").read_text()
+    assert "Fatal Python error: Aborted" in log and "stuck_in_shutdown" in log, log

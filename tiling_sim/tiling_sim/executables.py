@@ -32,3 +32,7 @@ def vi_accuracy() -> int:
 
 def vi_benchmark() -> int:
     return run_command("tiling_sim.vi_benchmark")
+
+
+def classify_benchmark() -> int:
+    return run_command("tiling_sim.classify_benchmark")

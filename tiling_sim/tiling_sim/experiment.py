@@ -231,7 +231,7 @@ class Experiment:
         executor = SingleThreadedExecutor()
         executor.add_node(observer)
         with ProcessGroup(log_dir=logs) as group:
-            env = dict(os.environ, TILING_EXPERIMENT_RUN=self.run_id)
+            env = dict(os.environ, TILING_EXPERIMENT_RUN=self.run_id, PYTHONFAULTHANDLER="1")
             for name, argv in self.node_commands(setup).items():
                 # perception is throughput work: let coordination (auctions, robots) run first
                 group.start(name, self.network.command(name, argv), self.network.environment(name, env),

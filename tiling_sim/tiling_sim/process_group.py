@@ -3,7 +3,8 @@
 Each process runs in a session of its own (so that it and anything it starts can be signalled as
 a group) and is told by the kernel to terminate if the runner dies, even by SIGKILL
 (PR_SET_PDEATHSIG). Stopping asks nicely first (SIGINT, as Ctrl-C would, so rclpy shuts down
-cleanly), then SIGTERM, then SIGKILL, and waits for every one of them.
+cleanly), then SIGTERM, then SIGABRT (a hung Python node's stacks into its log), then SIGKILL,
+and waits for every one of them.
 """
 
 from __future__ import annotations
@@ -97,7 +98,10 @@ class ProcessGroup:
         Returns the exit code of every process that was still running and did not exit cleanly
         (0) when asked: a node that needed SIGTERM or SIGKILL, or crashed on its way out."""
         asked = [name for name, p in self.processes.items() if p.alive()]
-        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
+        # SIGABRT before SIGKILL: a Python process started with PYTHONFAULTHANDLER set (the
+        # experiment's nodes are) writes every thread's stack to its log, where it hangs
+        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGABRT, 2.0),
+                          (signal.SIGKILL, 2.0)):
             running = [p for p in self.processes.values() if p.alive()]
             if not running:
                 break
