@@ -12,6 +12,8 @@ from rosbags.typesys import Stores, get_typestore
 from vi_helpers import REPO, SCANS, STRUCTURES, ros2_run
 
 from tiling_sim.scan_bag import ScanBagWriter, read_truth
+from vi_node.classify_bag import ScanInspector, read_recording
+from vi_node.inspection_settings import InspectionSettings
 
 PAPER = str(STRUCTURES / "paper_14.yaml")
 STATES = {"present", "missing", "occluded"}
@@ -63,9 +65,9 @@ def test_default_mode_fuses_the_scans_and_finds_every_removed_tile() -> None:
 
 
 def test_inspecting_in_several_processes_gives_the_same_lines_in_bag_order() -> None:
-    serial, stderr, code = classify("--bag", str(SCANS / "paper_qvga"), "--no-fuse")
+    serial, stderr, code = classify("--bag", str(SCANS / "paper_qvga"), "--no-fuse", "--jobs", "1")
     assert code == 0, stderr
-    parallel, stderr, code = classify("--bag", str(SCANS / "paper_qvga"), "--no-fuse", "--jobs", "2")
+    parallel, stderr, code = classify("--bag", str(SCANS / "paper_qvga"), "--no-fuse", "--jobs", "3")
     assert code == 0, stderr
     assert parallel == serial and len(serial) == 4
     _, stderr, code = classify("--bag", str(SCANS / "paper_qvga"), "--jobs", "0")
@@ -212,3 +214,21 @@ def test_reads_sqlite3_bags_with_a_driver_style_cloud_layout(tmp_path: Path) -> 
 
 def test_repository_paths_exist() -> None:
     assert (REPO / "install" / "vi_node" / "lib" / "vi_node" / "classify").exists()
+
+
+def test_scans_are_shared_between_this_process_and_its_workers_in_bag_order() -> None:
+    """Once the worker is up, scans go to it while this process inspects the others; the results
+    are the same scan for scan as one process alone gives, in the bag's order."""
+    structure = str(REPO / "config" / "structures" / "paper_14.yaml")
+    settings = InspectionSettings()
+    with ScanInspector(structure, None, settings, jobs=1) as alone:
+        expected = [(scan.stamp_ns, result.by_id() if result else None, error)
+                    for scan, result, error in alone.judge(read_recording(SCANS / "paper_vga"))]
+    with ScanInspector(structure, None, settings, jobs=2) as shared:
+        assert shared.workers_up.result(timeout=60)
+        got = [(scan.stamp_ns, result.by_id() if result else None, error)
+               for scan, result, error in shared.judge(read_recording(SCANS / "paper_vga"))]
+        assert shared.handed_out >= 1
+    assert [g[0] for g in got] == sorted(g[0] for g in got)
+    assert [(s, {k: t.state for k, t in r.items()} if r else None, e) for s, r, e in got] == \
+        [(s, {k: t.state for k, t in r.items()} if r else None, e) for s, r, e in expected]
