@@ -95,6 +95,10 @@ def test_removed_tile_is_detected_auctioned_and_replaced(experiment, tmp_path: P
     won = [d for d in trial["decisions"] if f"for tile {removal['tile']}:" in d and " wins with " in d]
     assert won and replaced[0]["robot"] in won[0]
     assert "Every trial finished the structure correctly: yes (1/1)" in result.stdout
+    # the plan the trial started from, as the planner gave it (paper_14, 2 robots: 245 s, bound 244 s)
+    assert data["lower_bound"] <= data["planned_makespan"] <= 1.05 * data["lower_bound"]
+    assert f"Planned makespan {data['planned_makespan']:.0f} s (lower bound {data['lower_bound']:.0f} s)" \
+        in result.stdout
 
 
 def test_a_robot_finding_a_support_absent_gets_it_replaced_without_inspection(experiment) -> None:  # type: ignore[no-untyped-def]

@@ -28,6 +28,7 @@ from tiling_sim.trial_record import (
     MISSING,
     OCCLUDED,
     PRESENT,
+    PlanRecord,
     TrialRecord,
     allocation_rows,
     detection_stats,
@@ -116,13 +117,18 @@ def detection_table(result: ExperimentResult) -> list[str]:
     return _table(["", "this run", "paper"], rows)
 
 
+def first_plan(result: ExperimentResult) -> PlanRecord | None:
+    """The plan the trials started from (revision 0; every trial starts from the same)."""
+    return next((p for r in result.records for p in r.plans if p.revision == 0), None)
+
+
 def makespan_lines(result: ExperimentResult) -> list[str]:
     lines = []
     baseline = [r.makespan() for r in result.records if r.trial == 0 and r.complete()]
     faulty = [r.makespan() for r in result.fault_trials() if r.complete()]
-    plans = [p for r in result.records for p in r.plans if p.revision == 0]
-    if plans:
-        lines.append(f"Planned makespan {plans[0].makespan:.0f} s (lower bound {plans[0].lower_bound:.0f} s)")
+    first = first_plan(result)
+    if first is not None:
+        lines.append(f"Planned makespan {first.makespan:.0f} s (lower bound {first.lower_bound:.0f} s)")
     if baseline:
         lines.append(f"Makespan without faults: {baseline[0]:.0f} s simulated")
     if faulty:
@@ -355,7 +361,10 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "false_missing_calls": false_missing_calls(record),
             "decisions": record.decisions,
         })
+    first = first_plan(result)
     return {"structure": result.structure.name, "robots": result.config.robot_names,
+            "planned_makespan": None if first is None else first.makespan,
+            "lower_bound": None if first is None else first.lower_bound,
             "network": {**result.config.network.as_dict(), "real_time_factor": result.config.real_time_factor,
                         "link_counters": result.link_counters},
             "trials": trials}
