@@ -55,8 +55,6 @@ COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 HEARTBEATS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 REPEATED = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
 
-STATE_NAMES = {v: k for k, v in vars(RobotStatus).items() if k.isupper() and isinstance(v, int)}
-
 
 def wall_stamp_to_seconds(stamp: Time) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
