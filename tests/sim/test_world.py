@@ -11,7 +11,7 @@ from conftest import STRUCTURES
 
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure_file import load_structure
-from tiling_sim.faults import FaultInjector
+from tiling_sim.faults import FaultInjector, choose_landings, mistaken_type
 from tiling_sim.robot_motion import (
     MotionModel,
     approach_point,
@@ -20,7 +20,7 @@ from tiling_sim.robot_motion import (
     placement_phases,
     start_positions,
 )
-from tiling_sim.world import PhysicalWorld, PlaceCheck
+from tiling_sim.world import Misplacement, PhysicalWorld, PlaceCheck
 
 PAPER = load_structure(STRUCTURES / "paper_14.yaml")
 
@@ -123,3 +123,78 @@ def test_automatic_start_positions_lie_outside_the_structure_and_apart() -> None
     for x, y in starts:
         assert min(math.hypot(x - cx, y - cy) for cx, cy in centres) >= 0.6 - 1e-9
     assert min(math.dist(a, b) for a, b in itertools.combinations(starts, 2)) > 0.5
+
+
+def test_a_tile_that_lands_shifted_blocks_its_neighbour_and_is_not_complete() -> None:
+    world = PhysicalWorld(PAPER)
+    world.place(3, Misplacement(shift=(0.0, 0.03)))  # the middle long rectangle, 3 cm towards tile 2
+    world.place(1)
+    check, reason = world.check_placement(2)
+    assert check is PlaceCheck.BLOCKED
+    assert reason == "tile 2 cannot be placed: tile 3 lies in the way (shifted 3.0 cm)"
+    assert world.wrong_tiles_in_the_way(2) == [3] and world.wrong_tiles_in_the_way(1) == []
+    assert world.wrong_tiles_in_the_way(10) == []  # 10 lies above it
+    real = world.actual(3)
+    assert np.allclose(real.position - PAPER.tiles[3].position, [0.0, 0.03, 0.0])
+    # taken off and put down right, the structure can be finished
+    world.remove(3)
+    assert world.misplaced == {}
+    for tile in sorted(PAPER.tile_ids, key=lambda t: PAPER.layers[t]):
+        if tile not in world.present:
+            world.place(tile)
+    assert world.complete()
+
+
+def test_a_tile_resting_on_a_turned_tile_cannot_be_placed() -> None:
+    world = PhysicalWorld(PAPER)
+    for tile in (1, 2, 3):
+        world.place(tile)
+    # the packing is tight: a trapezoid beside the long rectangles has no room to lie turned
+    assert not world.room_for(6, Misplacement(turn=math.radians(15.0)))
+    with pytest.raises(ValueError, match=r"cannot land turned \+15 deg: a present tile is there"):
+        world.place(6, Misplacement(turn=math.radians(15.0)))
+    alone = PhysicalWorld(PAPER)
+    alone.place(6, Misplacement(turn=math.radians(15.0)))
+    check, reason = alone.check_placement(9)  # the square resting on it
+    assert check is PlaceCheck.BLOCKED
+    assert reason == "tile 9 cannot be placed: its support 6 lies wrong (turned +15 deg)"
+    assert alone.wrong_tiles_in_the_way(1) == [6]  # and it takes up room the rectangles need
+    real = alone.actual(6)  # turned about its own centre: the centre stays
+    assert np.allclose(real.centroid, PAPER.tiles[6].centroid)
+    assert math.isclose(math.remainder(real.yaw - PAPER.tiles[6].yaw - math.radians(15.0), 2 * math.pi), 0.0,
+                        abs_tol=1e-9)
+
+
+def test_a_wrong_tile_is_another_type_of_the_same_height_from_the_nearest_cache() -> None:
+    assert mistaken_type(PAPER, "long_rectangle") == "octagon"  # trapezoid's cache is as near: by name
+    assert mistaken_type(PAPER, "triangle") == "octagon"
+    assert mistaken_type(load_structure(STRUCTURES / "gate_9.yaml"), "block") is None  # no other 6 cm type
+    world = PhysicalWorld(PAPER)
+    world.place(3, Misplacement(type_name="octagon"))
+    real = world.actual(3)
+    assert real.type_name == "octagon" and np.allclose(real.position, PAPER.tiles[3].position)
+    assert world.misplaced[3].kind == "wrong type" and not world.complete()
+
+
+def test_landings_are_seeded_in_range_and_leave_removals_as_they_were() -> None:
+    misplaced, wrong = choose_landings(seed=4, placements=14, misplaced=3, wrong_type=2)
+    assert (misplaced, wrong) == choose_landings(seed=4, placements=14, misplaced=3, wrong_type=2)
+    assert len(misplaced) == 3 and len(wrong) == 2 and not misplaced & wrong and misplaced | wrong <= set(range(1, 15))
+    every = frozenset(range(1, 201))
+    faults = FaultInjector(seed=4, misplaced_landings=every)
+    for _ in every:
+        landing = faults.landing(PAPER, 3)
+        assert landing is not None and landing.type_name is None
+        if landing.turn:
+            assert math.radians(15.0) <= abs(landing.turn) <= math.radians(45.0) and landing.shift == (0.0, 0.0)
+        else:
+            assert 0.02 <= math.hypot(*landing.shift) <= 0.05
+    wrong_only = FaultInjector(seed=4, wrong_type_landings=frozenset({2}))
+    assert [wrong_only.landing(PAPER, 3) for _ in range(3)] == [None, Misplacement(type_name="octagon"), None]
+    plain, with_landings = FaultInjector(seed=9), FaultInjector(seed=9, misplaced_landings=every)
+    for _ in range(5):
+        with_landings.landing(PAPER, 3)
+    removals = [with_landings.choose(list(range(20))) for _ in range(5)]
+    assert [plain.choose(list(range(20))) for _ in range(5)] == removals
+    with pytest.raises(ValueError, match="both land off and be of the wrong type"):
+        FaultInjector(seed=1, misplaced_landings=frozenset({1}), wrong_type_landings=frozenset({1}))

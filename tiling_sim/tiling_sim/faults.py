@@ -5,12 +5,25 @@ A seeded schedule of removal times per trial, and an optional chance that a tile
 gripper during a placement (the placement then fails). The tile removed at each time is drawn
 from the tiles that can be removed then (placed, nothing on top), with the same seeded generator,
 so a trial is reproducible from its seed.
+
+Beyond the paper (its future work): chosen placements of a trial land wrong. A misplaced tile is
+shifted 2-5 cm in a random direction or turned 15-45 degrees about the vertical; a wrong tile is a
+tile of another type of the same height, from the parts cache nearest the right one (the mix-up a
+robot makes at neighbouring caches). These draws use a generator of their own, so that a trial's
+removals and drops stay what they were without them.
 """
 
 from __future__ import annotations
 
+import math
 import random
 from dataclasses import dataclass, field
+
+from tiling_assembly.structure import Structure
+from tiling_sim.world import Misplacement
+
+SHIFT_RANGE = (0.02, 0.05)  # m
+TURN_RANGE = (math.radians(15.0), math.radians(45.0))
 
 
 @dataclass
@@ -18,12 +31,19 @@ class FaultInjector:
     seed: int
     removal_times: list[float] = field(default_factory=list)  # s of simulated time, ascending
     drop_probability: float = 0.0
+    misplaced_landings: frozenset[int] = frozenset()  # ordinals (1 = first) of placements that land off
+    wrong_type_landings: frozenset[int] = frozenset()  # ordinals of placements of a tile of the wrong type
     rng: random.Random = field(init=False)
+    landing_rng: random.Random = field(init=False)
+    landings: int = field(init=False, default=0)  # placements landed so far
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.drop_probability <= 1.0:
             raise ValueError("drop_probability must lie in [0, 1]")
+        if self.misplaced_landings & self.wrong_type_landings:
+            raise ValueError("a placement cannot both land off and be of the wrong type")
         self.rng = random.Random(self.seed)
+        self.landing_rng = random.Random(self.seed * 104729 + 3)
         self.removal_times = sorted(self.removal_times)
 
     @classmethod
@@ -50,3 +70,43 @@ class FaultInjector:
     def drops(self) -> bool:
         """Whether the tile being placed now slips from the gripper."""
         return self.drop_probability > 0 and self.rng.random() < self.drop_probability
+
+    def landing(self, structure: Structure, tile_id: int) -> Misplacement | None:
+        """How the tile placed now really lands: None when as planned. Counts the placement."""
+        self.landings += 1
+        if self.landings in self.misplaced_landings:
+            if self.landing_rng.random() < 0.5:
+                distance = self.landing_rng.uniform(*SHIFT_RANGE)
+                direction = self.landing_rng.uniform(0.0, 2.0 * math.pi)
+                return Misplacement(shift=(distance * math.cos(direction), distance * math.sin(direction)))
+            return Misplacement(turn=self.landing_rng.choice((-1.0, 1.0)) * self.landing_rng.uniform(*TURN_RANGE))
+        if self.landings in self.wrong_type_landings:
+            other = mistaken_type(structure, structure.tiles[tile_id].type_name)
+            return None if other is None else Misplacement(type_name=other)
+        return None
+
+
+def choose_landings(
+    seed: int, placements: int, misplaced: int, wrong_type: int
+) -> tuple[frozenset[int], frozenset[int]]:
+    """Which placements of a trial (ordinals 1..placements) land off and which are of the wrong type."""
+    rng = random.Random(seed * 7919 + 29)
+    chosen = rng.sample(range(1, placements + 1), min(placements, misplaced + wrong_type))
+    return frozenset(chosen[:misplaced]), frozenset(chosen[misplaced:])
+
+
+def mistaken_type(structure: Structure, type_name: str) -> str | None:
+    """The type a robot picks by mistake for `type_name`: of the same height, from the cache nearest
+    `type_name`'s; None when no other type has its height (or the caches are unknown)."""
+    def height(name: str) -> float:
+        z = structure.tile_types[name].shape.vertices[:, 2]
+        return float(z.max() - z.min())
+
+    home = structure.caches.get(type_name)
+    if home is None:
+        return None
+    same_height = [n for n in structure.tile_types
+                   if n != type_name and abs(height(n) - height(type_name)) < 1e-3 and n in structure.caches]
+    if not same_height:
+        return None
+    return min(same_height, key=lambda n: (math.dist(structure.caches[n], home), n))

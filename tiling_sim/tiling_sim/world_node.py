@@ -49,7 +49,7 @@ from tiling_sim.world_referee import StepAnswer, WorldReferee
 OUTCOME_CODES = {
     "ok": SimPlace.Response.OK, "already present": SimPlace.Response.ALREADY_PRESENT,
     "support missing": SimPlace.Response.SUPPORT_MISSING, "unknown tile": SimPlace.Response.UNKNOWN_TILE,
-    "dropped": SimPlace.Response.DROPPED,
+    "dropped": SimPlace.Response.DROPPED, "blocked by a wrong tile": SimPlace.Response.BLOCKED,
 }
 
 

@@ -26,11 +26,13 @@ class Outcome(Enum):
     SUPPORT_MISSING = "support missing"
     UNKNOWN_TILE = "unknown tile"
     DROPPED = "dropped"
+    BLOCKED = "blocked by a wrong tile"
 
 
 OUTCOME_OF_CHECK = {
     PlaceCheck.OK: Outcome.OK, PlaceCheck.ALREADY_PRESENT: Outcome.ALREADY_PRESENT,
     PlaceCheck.SUPPORT_MISSING: Outcome.SUPPORT_MISSING, PlaceCheck.UNKNOWN_TILE: Outcome.UNKNOWN_TILE,
+    PlaceCheck.BLOCKED: Outcome.BLOCKED,
 }
 
 
