@@ -21,7 +21,7 @@ import shutil
 import signal
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import rclpy
@@ -29,45 +29,21 @@ import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
 from rclpy.executors import SingleThreadedExecutor
 
-from tiling_assembly.structure import Structure, StructureError
+from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.team import TeamFileError, TeamNode, TeamRole, load_team
 from tiling_assembly.time_model import TimeModel
+from tiling_sim import report
 from tiling_sim.experiment_observer import ExperimentObserver
+from tiling_sim.experiment_result import ExperimentConfig, ExperimentResult
 from tiling_sim.network_plan import DEFAULT_NETNS_TIME_FACTOR, NetworkSettings, Outage
 from tiling_sim.process_group import ProcessGroup
 from tiling_sim.ros_domain import claim_domain_id, isolate
 from tiling_sim.team_network import TeamNetwork
-from tiling_sim.trial_record import DetectionStats, TrialRecord, detection_stats
+from tiling_sim.trial_record import TrialRecord, detection_stats
 from tiling_sim.virtual_hosts import VirtualHostsError
 
 HEAVY_NODES = {"sim_vi", "vi_node", "vi_explorer"}  # ray casting, point clouds (the world is light: the clock)
-
-
-@dataclass
-class ExperimentConfig:
-    structure_file: Path
-    robots: int = 2
-    trials: int = 14
-    removals: int = 22
-    seed: int = 1
-    real_time_factor: float = 20.0
-    report_dir: Path = Path("reports/paper_14")
-    config_dir: Path = Path("config")
-    baseline: bool = True
-    drop_probability: float = 0.0
-    kill_robot: str = ""  # robot to kill mid-run (tests and demonstrations)
-    kill_after_placements: int = 3
-    silent_robot: str = ""  # robot that never bids (tests)
-    robots_find_missing: bool = True  # False: only inspection finds missing tiles (the paper)
-    wall_limit: float = 0.0  # s per trial; 0: derived from the structure
-    quiet: bool = False
-    inspection: bool = True  # run the VI robot's nodes (inspection and exploration)
-    network: NetworkSettings = field(default_factory=NetworkSettings)  # one host, or a host per computer
-
-    @property
-    def robot_names(self) -> list[str]:
-        return [f"robot{k + 1}" for k in range(self.robots)]
 
 
 @dataclass
@@ -76,17 +52,6 @@ class TrialSetup:
     seed: int
     removals: int
     faults: bool
-
-
-@dataclass
-class ExperimentResult:
-    config: ExperimentConfig
-    structure: Structure
-    records: list[TrialRecord] = field(default_factory=list)
-    link_counters: dict[str, dict[str, int]] = field(default_factory=dict)  # robot -> its link's counters
-
-    def fault_trials(self) -> list[TrialRecord]:
-        return [r for r in self.records if r.trial > 0]
 
 
 def executable(package: str, name: str) -> str:
@@ -316,13 +281,6 @@ def trial_summary(record: TrialRecord) -> str:
             f"/ by robots {stats.found_by_robot}, auctions {len(record.awards)}")
 
 
-def total_stats(records: list[TrialRecord]) -> DetectionStats:
-    total = DetectionStats()
-    for record in records:
-        total.add(detection_stats(record))
-    return total
-
-
 def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser = argparse.ArgumentParser(prog="experiment", description=__doc__.split("\n\n")[0])
     parser.add_argument("--structure", default="config/structures/paper_14.yaml", help="structure file")
@@ -376,8 +334,6 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from tiling_sim import report
-
     config = parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     domain, _lock = claim_domain_id()

@@ -14,7 +14,6 @@ import re
 import statistics
 from collections import Counter
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -24,6 +23,7 @@ from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from tiling_assembly.structure import Structure
+from tiling_sim.experiment_result import ExperimentConfig, ExperimentResult
 from tiling_sim.trial_record import (
     MISSING,
     OCCLUDED,
@@ -37,10 +37,8 @@ from tiling_sim.trial_record import (
     lost_placements,
     removal_outcomes,
     schedule,
+    total_stats,
 )
-
-if TYPE_CHECKING:
-    from tiling_sim.experiment import ExperimentConfig, ExperimentResult
 
 STATE_COLOURS = {PRESENT: "#3a9d3a", MISSING: "#d43a3a", OCCLUDED: "#e8c23a", "unknown": "#9a9a9a"}
 KIND_COLOURS = {"place": "#4a78c2", "replace": "#e0892b", "failed": "#c23a3a", "wait": "#d9d9d9"}
@@ -87,8 +85,6 @@ def table2(record: TrialRecord, robots: list[str]) -> list[str]:
 
 
 def detection_table(result: ExperimentResult) -> list[str]:
-    from tiling_sim.experiment import total_stats
-
     stats = total_stats(result.fault_trials())
     rate = stats.present_judged_missing / stats.present_judgements if stats.present_judgements else 0.0
     rows = [

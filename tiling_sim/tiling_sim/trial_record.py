@@ -336,3 +336,11 @@ def lost_placements(record: TrialRecord) -> list[int]:
     ended = max((e.t for e in record.events), default=0.0)
     intervals = record.presence_intervals()
     return sorted(t for t in record.tile_types if not record.present_at(t, ended, intervals))
+
+
+def total_stats(records: list[TrialRecord]) -> DetectionStats:
+    """The detection statistics of several trials together."""
+    total = DetectionStats()
+    for record in records:
+        total.add(detection_stats(record))
+    return total

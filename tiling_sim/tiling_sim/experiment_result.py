@@ -1,0 +1,50 @@
+"""What an experiment was asked to do (`ExperimentConfig`, from `experiment`'s command line) and
+what it gave (`ExperimentResult`): the data the runner (`experiment`) fills and the report
+(`report`) reads, apart from both so that neither imports the other."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tiling_assembly.structure import Structure
+from tiling_sim.network_plan import NetworkSettings
+from tiling_sim.trial_record import TrialRecord
+
+
+@dataclass
+class ExperimentConfig:
+    structure_file: Path
+    robots: int = 2
+    trials: int = 14
+    removals: int = 22
+    seed: int = 1
+    real_time_factor: float = 20.0
+    report_dir: Path = Path("reports/paper_14")
+    config_dir: Path = Path("config")
+    baseline: bool = True
+    drop_probability: float = 0.0
+    kill_robot: str = ""  # robot to kill mid-run (tests and demonstrations)
+    kill_after_placements: int = 3
+    silent_robot: str = ""  # robot that never bids (tests)
+    robots_find_missing: bool = True  # False: only inspection finds missing tiles (the paper)
+    wall_limit: float = 0.0  # s per trial; 0: derived from the structure
+    quiet: bool = False
+    inspection: bool = True  # run the VI robot's nodes (inspection and exploration)
+    network: NetworkSettings = field(default_factory=NetworkSettings)  # one host, or a host per computer
+
+    @property
+    def robot_names(self) -> list[str]:
+        return [f"robot{k + 1}" for k in range(self.robots)]
+
+
+
+@dataclass
+class ExperimentResult:
+    config: ExperimentConfig
+    structure: Structure
+    records: list[TrialRecord] = field(default_factory=list)
+    link_counters: dict[str, dict[str, int]] = field(default_factory=dict)  # robot -> its link's counters
+
+    def fault_trials(self) -> list[TrialRecord]:
+        return [r for r in self.records if r.trial > 0]
