@@ -33,7 +33,11 @@ CONVEX_KEYS = {"vertices"}
 TILE_KEYS = {"id", "type", "position", "yaw", "rpy", "supports"}
 
 
-class _StrictLoader(yaml.SafeLoader):
+# libyaml's parser where PyYAML was built with it: ~10x faster on big structures (same documents)
+_SafeLoader: type[yaml.SafeLoader] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class _StrictLoader(_SafeLoader):  # type: ignore[misc,valid-type]
     """A safe YAML loader that refuses duplicate keys instead of keeping the last one."""
 
 
