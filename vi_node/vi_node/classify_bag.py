@@ -359,7 +359,7 @@ class ScanInspector:
             # scans go to the workers once they are up: until then this process inspects alone
             self.workers_up = self.pool.submit(_worker_ready)
         self.pipeline = InspectionPipeline(load_structure(structure_file), expected, settings)
-        self.queued = 0  # scans handed to the workers and not yet done
+        self.in_flight: list[Future[ScanResult]] = []  # scans handed to the workers, maybe done
         self.handed_out = 0  # scans the workers inspected in all
 
     def __enter__(self) -> ScanInspector:
@@ -392,16 +392,13 @@ class ScanInspector:
             return scan, None, f"no overhead pose within {s.pose_tolerance:g} s of the scan"
         assert scan.cloud is not None
         robots = recording.team.at(scan.stamp_ns, int(s.robot_pose_tolerance * 1e9))
-        if self.pool is not None and self.workers_up.done() and self.queued < 2 * self.workers:
+        self.in_flight = [job for job in self.in_flight if not job.done()]
+        if self.pool is not None and self.workers_up.done() and len(self.in_flight) < 2 * self.workers:
             job = self.pool.submit(_inspect_in_worker, scan.cloud, match[0], robots)
-            self.queued += 1
+            self.in_flight.append(job)
             self.handed_out += 1
-            job.add_done_callback(self._worker_done)
             return scan, job, ""
         return scan, self.pipeline.inspect(scan.cloud, match[0], robots), ""
-
-    def _worker_done(self, _job: Future[ScanResult]) -> None:
-        self.queued -= 1
 
 
 def _done(job: Future[ScanResult] | ScanResult | None) -> bool:
