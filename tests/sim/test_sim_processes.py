@@ -10,9 +10,11 @@ import itertools
 import json
 import math
 import os
+import signal
 import subprocess
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -172,6 +174,51 @@ def test_a_placement_has_the_old_phases_duration_result_and_events(sim: Simulato
     after = sim.call(sim.snapshot.call_async(SimSnapshot.Request()))
     assert 1 in after.present_tiles
     assert any(math.dist((p.x, p.y), phases[-1].end) < 1e-6 for p in after.robots), after.robots
+
+
+def _process_tree(pid: int) -> list[int]:
+    """`pid` and its descendants (a real `ros2 run` starts the node as its child)."""
+    parents = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        parents.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    tree, todo = [], [pid]
+    while todo:
+        tree.append(todo.pop())
+        todo.extend(parents.get(tree[-1], []))
+    return tree
+
+
+def test_a_body_that_stalls_still_ends_each_phase_at_its_tick(sim: Simulator) -> None:
+    """A body's process that stops for 1 s of wall time (20 s simulated, 50 ticks) mid-placement, as
+    on a loaded host, reads the ticks it missed in order and ends the placement on time."""
+    before = sim.call(sim.snapshot.call_async(SimSnapshot.Request()))
+    start = (before.robots[0].x, before.robots[0].y)  # robot1, the only assembly robot here
+    stalled: list[int] = []
+
+    def on_feedback(feedback: Any) -> None:
+        if feedback.feedback.phase == PlaceTile.Feedback.DRIVING_TO_CACHE and not stalled:
+            stalled.extend(_process_tree(sim.processes["sim_robot"].pid))
+            for pid in stalled:
+                os.kill(pid, signal.SIGSTOP)
+
+    handle = sim.send_placement(2, on_feedback)
+    result_future = handle.get_result_async()
+    assert sim.spin_until(lambda: bool(stalled), 10.0), "no feedback from the body"
+    sim.spin_until(lambda: False, 1.0)
+    for pid in stalled:
+        os.kill(pid, signal.SIGCONT)
+    result = sim.call(result_future, timeout=60.0).result
+    assert result.error_code == PlaceTile.Result.SUCCEEDED, result.message
+    tile = PAPER.tiles[2]
+    phases = placement_phases(RobotBodySettings().motion(), start, PAPER.caches[tile.type_name],
+                              (tile.position[0], tile.position[1]),
+                              [convex_hull_2d(t.vertices[:, :2]) for t in PAPER.tiles.values()])
+    planned = sum(p.duration for p in phases)
+    assert planned <= result.duration <= planned + len(phases) * TICK + 0.1
 
 
 def test_a_placement_on_absent_supports_is_refused_naming_them(sim: Simulator) -> None:

@@ -5,7 +5,7 @@ Real robots never use it; it stands for the physics the real robots would meet. 
 
 | name | type | from -> to | QoS |
 |---|---|---|---|
-| `/clock` | rosgraph_msgs/Clock | world -> all | reliable, depth 10 |
+| `/clock` | rosgraph_msgs/Clock | world -> all | reliable, depth 1000 (bodies read every tick) |
 | `/sim/place` | SimPlace.srv | `sim_robot` -> world | service: each placement step, atomically |
 | `/sim/snapshot` | SimSnapshot.srv | `sim_vi` -> world | service: tiles, robots, stamp; may hold the clock |
 | `/sim/motion` | SimMotion.msg | bodies -> world | reliable, transient local, depth 10: where a base stands |
@@ -39,8 +39,12 @@ SCAN_PROGRESS = "/sim/scan_progress"
 EVENTS = "/sim/events"
 START = "/sim/start"
 
-CLOCK_OUT = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-CLOCK_IN = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)  # every tick, in order (SimTime)
+# SimTime wakes a body at the first tick at or after its alarm, so a body whose process stalls must
+# still get every tick, in order: a queue of 10 (0.2 s of wall time at clock_step 0.02) dropped the
+# ticks of a longer stall and woke it several simulated seconds late. Both ends keep 20 s of ticks.
+CLOCK_DEPTH = 1000
+CLOCK_OUT = QoSProfile(depth=CLOCK_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+CLOCK_IN = QoSProfile(depth=CLOCK_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 # kept for a world that joins late (its subscription matched after the first declarations): where a
 # base stands from when is absolute, so the world may hear it late, never lose it
 MOTION_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -76,7 +80,7 @@ def stamp_of(seconds: float) -> Any:
 class SimTime:
     """Simulated time as `/clock` tells a body, and alarms on it.
 
-    Every tick is read, in order (reliable, a queue of 10): an alarm wakes at the first tick at or
+    Every tick is read, in order (reliable, a queue of `CLOCK_DEPTH`): an alarm wakes at the first tick at or
     after its time, also when the body's process runs late, and its future holds that tick's time.
     A body that starts its next phase from that time, not from the latest tick it has heard of,
     keeps the timeline the world had when it was one process, however long messages take.
