@@ -16,7 +16,7 @@ import time
 from rclpy.node import Node
 
 from tiling_assembly.interrupts import run_executable
-from tiling_assembly.spinning import run_node
+from tiling_ros.spinning import run_node
 
 
 def signal_myself() -> None:

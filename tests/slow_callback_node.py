@@ -10,7 +10,7 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from tiling_assembly.spinning import run_node
+from tiling_ros.spinning import run_node
 
 
 class SlowCallbackNode(Node):

@@ -15,7 +15,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from std_msgs.msg import Empty, String
 
-from tiling_assembly.spinning import Spinner
+from tiling_ros.spinning import Spinner
 
 pytestmark = pytest.mark.ros
 

@@ -14,21 +14,18 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass
 
 from action_msgs.msg import GoalStatus
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseStamped
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionClient
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from assembly_node.bidding import compute_bid
 from assembly_node.executor import Outcome, PlanExecutor, StepKind
 from assembly_node.team_contact import TeamContact
 from tiling_assembly.messages import pose_of, structure_from_msg
-from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.time_model import TimeModel
@@ -44,41 +41,57 @@ from tiling_assembly_msgs.msg import (
     RobotStatus,
     Structure,
 )
+from tiling_ros.parameters import declare_settings, setting
+from tiling_ros.qos import COORDINATION, HEARTBEATS, LATCHED, REPEATED, REPORTS
+from tiling_ros.spinning import run_node
+from tiling_ros.stamps import is_zero, stamp_to_seconds
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-# Read best effort, though sent reliably: a reliable reader holds every later sample back until DDS
-# repairs a lost one (at the writer's next heartbeat, seconds by default), so over a lossy link one
-# lost heartbeat made a robot look dead. A lost heartbeat is replaced by the next; a lost auction
-# message by its next copy (the sender repeats it until answered).
-HEARTBEATS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-REPEATED = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
+_TIMES = TimeModel()
 
 
-def wall_stamp_to_seconds(stamp: Time) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
+@dataclass(frozen=True)
+class AssemblySettings:
+    """The parameters of assembly_node (config/assembly_node.yaml), with their defaults."""
+
+    robot_name: str = setting("", "Name in plans and auctions; empty: the namespace without '/'.")
+    structure_file: str = setting("", "Structure YAML to use before /structure arrives; empty: wait.")
+    pick_time: float = setting(_TIMES.pick_time, "Time model: s to find and grasp a tile at its cache.")
+    place_time: float = setting(_TIMES.place_time, "Time model: s to place a tile.")
+    travel_speed: float = setting(_TIMES.travel_speed, "Time model: mean base speed between cache and structure, m/s.")
+    weight_supported: float = setting(30.0, "A in b = w - A*c + B*d: s per own tile the missing one supports.")
+    weight_distance: float = setting(10.0, "B in b = w - A*c + B*d: s per metre from own cache to the tile.")
+    bid_in_auctions: bool = setting(True, "Take part in auctions; false: never bid (the robot keeps its own task).")
+    max_attempts: int = setting(3, "Place actions per tile before giving it up for auction.")
+    retry_delay: float = setting(5.0, "s (node clock) to wait before retrying a failed placement.")
+    strict_order: bool = setting(False, "Wait on the next planned tile instead of placing a later ready one.")
+    action_timeout: float = setting(900.0, "s (node clock) a place action may take before it counts as failed.")
+    heartbeat_period: float = setting(0.2, "s of wall-clock time between two /robot_status heartbeats.")
+    auctioneer_timeout: float = setting(
+        1.5, "s of wall-clock time without /auction/status after which the robot finishes its tile and starts no "
+        "new one (its tiles may be given to others).")
+    cache_types: list[str] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [""], "Tile types with a cache of this robot's own (parallel to cache_xy).")
+    cache_xy: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.0], "x1, y1, x2, y2, ... of this robot's own caches in map (m).")
 
 
 class AssemblyNode(Node):
     def __init__(self) -> None:
         super().__init__("assembly_node")
-        self._declare_parameters()
+        settings = self.settings = declare_settings(self, AssemblySettings)
         self.robot_name = self._robot_name()
         self.time_model = TimeModel(
-            pick_time=self.get_parameter("pick_time").value,
-            place_time=self.get_parameter("place_time").value,
-            travel_speed=self.get_parameter("travel_speed").value,
+            pick_time=settings.pick_time, place_time=settings.place_time, travel_speed=settings.travel_speed
         )
-        self.weight_supported = float(self.get_parameter("weight_supported").value)
-        self.weight_distance = float(self.get_parameter("weight_distance").value)
-        self.max_attempts = int(self.get_parameter("max_attempts").value)
-        self.bid_in_auctions = bool(self.get_parameter("bid_in_auctions").value)
-        self.retry_delay = float(self.get_parameter("retry_delay").value)
-        self.strict_order = bool(self.get_parameter("strict_order").value)
-        self.action_timeout = float(self.get_parameter("action_timeout").value)
+        self.weight_supported = float(settings.weight_supported)
+        self.weight_distance = float(settings.weight_distance)
+        self.max_attempts = int(settings.max_attempts)
+        self.bid_in_auctions = bool(settings.bid_in_auctions)
+        self.retry_delay = float(settings.retry_delay)
+        self.strict_order = bool(settings.strict_order)
+        self.action_timeout = float(settings.action_timeout)
         self.own_caches = self._cache_overrides()
-        self.contact = TeamContact(self.robot_name, float(self.get_parameter("auctioneer_timeout").value))
+        self.contact = TeamContact(self.robot_name, float(settings.auctioneer_timeout))
         self.bids_made: dict[int, AuctionBid] = {}  # auction id -> the bid sent
         self.acceptances: dict[int, AuctionAcceptance] = {}  # auction id -> the acceptance sent
 
@@ -105,39 +118,15 @@ class AssemblyNode(Node):
         self.place_client = ActionClient(self, PlaceTile, "place_tile")
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(float(self.get_parameter("heartbeat_period").value), self.publish_status, clock=steady)
+        self.create_timer(float(settings.heartbeat_period), self.publish_status, clock=steady)
         self.create_timer(0.25, self.step, clock=steady)
 
-        structure_file = self.get_parameter("structure_file").value
-        if structure_file:
-            self._set_structure(load_structure(structure_file))
+        if settings.structure_file:
+            self._set_structure(load_structure(settings.structure_file))
         self.get_logger().info(f"{self.robot_name} ready; waiting for the plan on /plan")
 
-    # --- parameters -------------------------------------------------------------------------
-    def _declare_parameters(self) -> None:
-        def declare(name: str, default: object, description: str) -> None:
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-
-        declare("robot_name", "", "Name in plans and auctions; empty: the namespace without '/'.")
-        declare("structure_file", "", "Structure YAML to use before /structure arrives; empty: wait.")
-        declare("pick_time", 8.0, "Time model: s to find and grasp a tile at its cache.")
-        declare("place_time", 12.0, "Time model: s to place a tile.")
-        declare("travel_speed", 0.15, "Time model: mean base speed between cache and structure, m/s.")
-        declare("weight_supported", 30.0, "A in b = w - A*c + B*d: s per own tile the missing one supports.")
-        declare("weight_distance", 10.0, "B in b = w - A*c + B*d: s per metre from own cache to the tile.")
-        declare("bid_in_auctions", True, "Take part in auctions; false: never bid (the robot keeps its own task).")
-        declare("max_attempts", 3, "Place actions per tile before giving it up for auction.")
-        declare("retry_delay", 5.0, "s (node clock) to wait before retrying a failed placement.")
-        declare("strict_order", False, "Wait on the next planned tile instead of placing a later ready one.")
-        declare("action_timeout", 900.0, "s (node clock) a place action may take before it counts as failed.")
-        declare("heartbeat_period", 0.2, "s of wall-clock time between two /robot_status heartbeats.")
-        declare("auctioneer_timeout", 1.5, "s of wall-clock time without /auction/status after which the robot "
-                "finishes its tile and starts no new one (its tiles may be given to others).")
-        declare("cache_types", [""], "Tile types with a cache of this robot's own (parallel to cache_xy).")
-        declare("cache_xy", [0.0], "x1, y1, x2, y2, ... of this robot's own caches in map (m).")
-
     def _robot_name(self) -> str:
-        name = self.get_parameter("robot_name").value or self.get_namespace().strip("/")
+        name = self.settings.robot_name or self.get_namespace().strip("/")
         if not name or "/" in name:
             raise ValueError(
                 f"robot_name is '{name}': run the node in a robot namespace (e.g. /robot1) or set robot_name"
@@ -145,8 +134,8 @@ class AssemblyNode(Node):
         return name
 
     def _cache_overrides(self) -> dict[str, tuple[float, float]]:
-        types = [t for t in self.get_parameter("cache_types").value if t]
-        xy = list(self.get_parameter("cache_xy").value) if types else []
+        types = [t for t in self.settings.cache_types if t]
+        xy = list(self.settings.cache_xy) if types else []
         if len(xy) != 2 * len(types):
             raise ValueError(f"cache_xy needs 2 numbers per cache type ({len(types)} types), got {len(xy)}")
         return {t: (float(xy[2 * k]), float(xy[2 * k + 1])) for k, t in enumerate(types)}
@@ -246,8 +235,8 @@ class AssemblyNode(Node):
         received = time.time()
         index = state.award(msg.tile_id)
         latency = 0.0
-        if msg.detection_wall_stamp.sec or msg.detection_wall_stamp.nanosec:
-            latency = received - wall_stamp_to_seconds(msg.detection_wall_stamp)
+        if not is_zero(msg.detection_wall_stamp):
+            latency = received - stamp_to_seconds(msg.detection_wall_stamp)
         self.accept(msg, latency)
         self.get_logger().info(
             f"won tile {msg.tile_id} (auction {msg.auction_id}); placing it at position {index} of my task"

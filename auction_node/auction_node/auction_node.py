@@ -20,13 +20,10 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass
 
-import rclpy
-from builtin_interfaces.msg import Time
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from auction_node.auction import AuctionBook, Award
@@ -35,7 +32,6 @@ from auction_node.liveness import Liveness
 from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
 from tiling_assembly.messages import pose_of, structure_from_msg
 from tiling_assembly.scan_freshness import RepeatFilter
-from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly_msgs.msg import (
@@ -52,17 +48,10 @@ from tiling_assembly_msgs.msg import (
     TileStateArray,
 )
 from tiling_assembly_msgs.srv import Replan
-
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-# Read best effort, though sent reliably: a reliable reader holds every later sample back until DDS
-# repairs a lost one (at the writer's next heartbeat, seconds by default), so over a lossy link one
-# lost heartbeat made a robot look dead. A lost heartbeat is replaced by the next; a lost auction
-# message by its next copy (the sender repeats it until answered).
-HEARTBEATS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-REPEATED = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
-DECISIONS = QoSProfile(depth=200, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+from tiling_ros.parameters import declare_settings, setting
+from tiling_ros.qos import COORDINATION, DECISIONS, HEARTBEATS, LATCHED, REPEATED, REPORTS
+from tiling_ros.spinning import run_node
+from tiling_ros.stamps import stamp_from_nanoseconds, stamp_from_seconds, stamp_to_seconds
 
 SENSING = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING}  # anything else: undetermined
 REASONS = {
@@ -73,29 +62,52 @@ REASONS = {
 }
 
 
-def stamp_seconds(stamp: Time) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
+@dataclass(frozen=True)
+class AuctionSettings:
+    """The parameters of auction_node (config/auction_node.yaml), with their defaults."""
+
+    confirmations: int = setting(2, "Scans that must call a placed tile missing, none present between (paper: 1).")
+    confirmation_view_change: float = setting(
+        0.15, "m between the camera positions of two scans confirming a missing tile (0: any scans).")
+    bid_window: float = setting(2.0, "s (node clock) from an announcement to its deadline.")
+    liveness_timeout: float = setting(1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
+    acceptance_timeout: float = setting(
+        10.0, "s of wall-clock time without acceptance from a winner still heard before its tile is auctioned "
+        "again (a lost winner's tile goes back at once).")
+    resend_period: float = setting(
+        0.05, "s of wall-clock time between copies of an unanswered announcement or award.")
+    lost_tile_grace: float = setting(
+        60.0, "s (node clock) the tile in a lost robot's hands stays its own before it is auctioned (out of "
+        "reach, the robot may be placing it).")
+    status_period: float = setting(0.2, "s of wall-clock time between two /auction/status heartbeats.")
+    reopen_delay: float = setting(5.0, "s (node clock) before an auction nobody bid in is reopened.")
+    lost_robot_policy: str = setting("replan", "'replan' (planner's /replan service) or 'auction' per tile.")
+    robots_find_missing: bool = setting(
+        True, "A support a robot found absent when placing on it is missing (false: only scans decide).")
+    unconfirmed_report_timeout: float = setting(
+        60.0, "s (node clock): with robots_find_missing false, a support a robot found absent that no scan has "
+        "found missing by then is treated as missing, so the robot does not wait forever.")
 
 
 class AuctionNode(Node):
     def __init__(self) -> None:
         super().__init__("auction_node")
-        self._declare_parameters()
+        settings = self.settings = declare_settings(self, AuctionSettings)
         self.detector = MismatchDetector(
-            confirmations=int(self.get_parameter("confirmations").value),
-            min_view_change=float(self.get_parameter("confirmation_view_change").value),
+            confirmations=int(settings.confirmations),
+            min_view_change=float(settings.confirmation_view_change),
         )
-        self.book = AuctionBook(bid_window=float(self.get_parameter("bid_window").value))
-        self.liveness = Liveness(timeout=float(self.get_parameter("liveness_timeout").value))
-        resend_period = float(self.get_parameter("resend_period").value)
-        self.delivery = AwardDelivery(resend_period, float(self.get_parameter("acceptance_timeout").value))
+        self.book = AuctionBook(bid_window=float(settings.bid_window))
+        self.liveness = Liveness(timeout=float(settings.liveness_timeout))
+        resend_period = float(settings.resend_period)
+        self.delivery = AwardDelivery(resend_period, float(settings.acceptance_timeout))
         self.repeater = AnnouncementRepeater(resend_period)
         if resend_period <= 0 or self.delivery.give_up_after <= 0:
             raise ValueError("resend_period and acceptance_timeout must be positive")
-        self.reopen_delay = float(self.get_parameter("reopen_delay").value)
-        self.lost_robot_policy = str(self.get_parameter("lost_robot_policy").value)
-        self.robots_find_missing = bool(self.get_parameter("robots_find_missing").value)
-        self.unconfirmed = UnconfirmedReports(float(self.get_parameter("unconfirmed_report_timeout").value))
+        self.reopen_delay = float(settings.reopen_delay)
+        self.lost_robot_policy = str(settings.lost_robot_policy)
+        self.robots_find_missing = bool(settings.robots_find_missing)
+        self.unconfirmed = UnconfirmedReports(float(settings.unconfirmed_report_timeout))
         if self.unconfirmed.timeout <= 0:
             raise ValueError("unconfirmed_report_timeout must be positive")
         if self.lost_robot_policy not in ("replan", "auction"):
@@ -114,7 +126,7 @@ class AuctionNode(Node):
         self.reopen: list[tuple[float, int, int]] = []  # (node time, tile, reason)
         self.plan_revision = 0
         self.in_lost_hands: dict[str, tuple[int, float]] = {}  # lost robot -> (tile in its hands, node time)
-        self.lost_tile_grace = float(self.get_parameter("lost_tile_grace").value)
+        self.lost_tile_grace = float(settings.lost_tile_grace)
 
         self.announce_pub = self.create_publisher(AuctionAnnouncement, "/auction/announcements", COORDINATION)
         self.award_pub = self.create_publisher(AuctionAward, "/auction/awards", COORDINATION)
@@ -130,31 +142,8 @@ class AuctionNode(Node):
         self.replan_client = self.create_client(Replan, "/replan")
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(0.02, self.tick, clock=steady)
-        self.create_timer(float(self.get_parameter("status_period").value), self.publish_status, clock=steady)
+        self.create_timer(float(settings.status_period), self.publish_status, clock=steady)
         self.get_logger().info("auction node ready")
-
-    def _declare_parameters(self) -> None:
-        def declare(name: str, default: object, description: str) -> None:
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-
-        declare("confirmations", 2, "Scans that must call a placed tile missing, none present between (paper: 1).")
-        declare("confirmation_view_change", 0.15,
-                "m between the camera positions of two scans confirming a missing tile (0: any scans).")
-        declare("bid_window", 2.0, "s (node clock) from an announcement to its deadline.")
-        declare("liveness_timeout", 1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
-        declare("acceptance_timeout", 10.0, "s of wall-clock time without acceptance from a winner still heard "
-                "before its tile is auctioned again (a lost winner's tile goes back at once).")
-        declare("resend_period", 0.05, "s of wall-clock time between copies of an unanswered announcement or award.")
-        declare("lost_tile_grace", 60.0, "s (node clock) the tile in a lost robot's hands stays its own before "
-                "it is auctioned (out of reach, the robot may be placing it).")
-        declare("status_period", 0.2, "s of wall-clock time between two /auction/status heartbeats.")
-        declare("reopen_delay", 5.0, "s (node clock) before an auction nobody bid in is reopened.")
-        declare("lost_robot_policy", "replan", "'replan' (planner's /replan service) or 'auction' per tile.")
-        declare("robots_find_missing", True,
-                "A support a robot found absent when placing on it is missing (false: only scans decide).")
-        declare("unconfirmed_report_timeout", 60.0,
-                "s (node clock): with robots_find_missing false, a support a robot found absent that no scan "
-                "has found missing by then is treated as missing, so the robot does not wait forever.")
 
     # --- helpers ------------------------------------------------------------------------------
     def now(self) -> float:
@@ -188,7 +177,7 @@ class AuctionNode(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.structure.frame_id
         msg.tile_pose = pose_of(tile)
-        msg.deadline = rclpy.time.Time(nanoseconds=int(auction.deadline * 1e9)).to_msg()
+        msg.deadline = stamp_from_nanoseconds(int(auction.deadline * 1e9))
         self.announce_pub.publish(msg)
         self.announcements[auction.auction_id] = msg
         self.repeater.sent(auction.auction_id, time.monotonic())
@@ -206,13 +195,13 @@ class AuctionNode(Node):
 
     def on_report(self, msg: PlacementReport) -> None:
         if msg.outcome == PlacementReport.OUTCOME_PLACED:
-            self.detector.placed(msg.tile_id, stamp_seconds(msg.header.stamp))
+            self.detector.placed(msg.tile_id, stamp_to_seconds(msg.header.stamp))
         elif msg.outcome == PlacementReport.OUTCOME_FAILED:
             self.detector.unplaced(msg.tile_id)
             self.decide(f"{msg.robot_name} gave up tile {msg.tile_id}: {msg.reason}", error=True)
             self.announce(msg.tile_id, AuctionAnnouncement.REASON_GAVE_UP, exclude=msg.robot_name)
         elif msg.outcome == PlacementReport.OUTCOME_SUPPORT_MISSING:
-            at = stamp_seconds(msg.header.stamp)
+            at = stamp_to_seconds(msg.header.stamp)
             for support in msg.missing_supports:
                 if self.detector.q.get(support, 0) != 1:
                     continue  # found missing already, or never placed
@@ -241,7 +230,7 @@ class AuctionNode(Node):
         fresh = self.repeats.fresh_states(msg.states)
         sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states if s.tile_id in fresh}
         view = (msg.camera_pose.position.x, msg.camera_pose.position.y)
-        for tile_id in self.detector.sensed(sensing, stamp_seconds(msg.header.stamp), view):
+        for tile_id in self.detector.sensed(sensing, stamp_to_seconds(msg.header.stamp), view):
             self.detected_wall[tile_id] = detected
             self.decide(f"tile {tile_id} was placed but the scan says missing (q * q^s = -1)")
             self.announce(tile_id, AuctionAnnouncement.REASON_MISSING)
@@ -332,7 +321,7 @@ class AuctionNode(Node):
         )
         msg.header.stamp = self.get_clock().now().to_msg()
         if detected:
-            msg.detection_wall_stamp = Time(sec=int(detected), nanosec=int((detected % 1) * 1e9))
+            msg.detection_wall_stamp = stamp_from_seconds(detected)
         return msg
 
     def robot_lost(self, robot: str) -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import dataclass
 
 from geometry_msgs.msg import Twist
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -25,26 +26,47 @@ from std_msgs.msg import Bool
 from hardware_drivers.base_navigation import GoToPose, GoToPoseParams
 from hardware_drivers.goal_slot import GoalSlot
 from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
-from hardware_drivers.node_support import declare, positive, publish_last, require, run_node
+from hardware_drivers.node_support import publish_last, require, require_positive, run_node
 from hardware_drivers.planar_pose import Pose2D
 from tiling_assembly_msgs.action import NavigateTo
+from tiling_ros.parameters import declare_settings, setting
+
+_DRIVE = GoToPoseParams()
+
+
+@dataclass(frozen=True)
+class BaseNavigatorSettings:
+    """The parameters of base_navigator (config/hardware_drivers.yaml), with their defaults."""
+
+    max_linear: float = setting(_DRIVE.max_linear, "m/s, driving speed")
+    max_angular: float = setting(_DRIVE.max_angular, "rad/s, turning speed")
+    position_tolerance: float = setting(0.02, "m, default goal tolerance")
+    yaw_tolerance: float = setting(0.05, "rad, default heading tolerance")
+    navigation_timeout: float = setting(120.0, "s allowed per goal")
+    control_rate: float = setting(20.0, "Hz, control loop")
+    overhead_fix_weight: float = setting(0.3, "weight (0..1] of each overhead fix")
+    device_timeout: float = setting(1.0, "s without odom before the base counts as lost")
+    map_frame: str = setting("map", "frame of goals and overhead fixes")
 
 
 class BaseNavigatorNode(Node):
     def __init__(self, **node_options) -> None:
         super().__init__("base_navigator", **node_options)
+        settings = self.settings = declare_settings(self, BaseNavigatorSettings)
+        require_positive(settings, "max_linear", "max_angular", "position_tolerance", "yaw_tolerance",
+                         "navigation_timeout", "control_rate", "overhead_fix_weight", "device_timeout")
         self.params = GoToPoseParams(
-            max_linear=positive(self, "max_linear", 0.2, "m/s, driving speed"),
-            max_angular=positive(self, "max_angular", 1.0, "rad/s, turning speed"),
-            position_tolerance=positive(self, "position_tolerance", 0.02, "m, default goal tolerance"),
-            yaw_tolerance=positive(self, "yaw_tolerance", 0.05, "rad, default heading tolerance"),
+            max_linear=float(settings.max_linear),
+            max_angular=float(settings.max_angular),
+            position_tolerance=float(settings.position_tolerance),
+            yaw_tolerance=float(settings.yaw_tolerance),
         )
-        self.timeout = positive(self, "navigation_timeout", 120.0, "s allowed per goal")
-        self.rate = positive(self, "control_rate", 20.0, "Hz, control loop")
-        fix_weight = positive(self, "overhead_fix_weight", 0.3, "weight (0..1] of each overhead fix")
-        odom_timeout = positive(self, "device_timeout", 1.0, "s without odom before the base counts as lost")
+        self.timeout = float(settings.navigation_timeout)
+        self.rate = float(settings.control_rate)
+        fix_weight = float(settings.overhead_fix_weight)
+        odom_timeout = float(settings.device_timeout)
         require(fix_weight <= 1.0, "overhead_fix_weight must be in (0, 1]")
-        self.frame = declare(self, "map_frame", "map", "frame of goals and overhead fixes")
+        self.frame = settings.map_frame
         group = ReentrantCallbackGroup()
         self.tracker = MapPoseTracker(self, fix_weight, odom_timeout, group)
         self.hazards = {"bumper": False, "wheel_drop": False}

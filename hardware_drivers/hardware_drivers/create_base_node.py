@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -28,44 +29,59 @@ from std_msgs.msg import Bool
 
 from hardware_drivers.create_driver import CreateConfig, CreateDriver, CreateState
 from hardware_drivers.node_support import (
-    SENSOR_PUBLISHER_QOS,
     DiagnosticsReporter,
     ParameterError,
-    declare,
     log_event,
-    positive,
     require,
+    require_positive,
     run_node,
 )
+from tiling_ros.parameters import declare_settings, setting
+from tiling_ros.qos import SENSOR_PUBLISHER
+
+_CREATE = CreateConfig(port="/dev/ttyUSB0")
+
+
+@dataclass(frozen=True)
+class CreateBaseSettings:
+    """The parameters of create_base (config/hardware_drivers.yaml), with their defaults."""
+
+    port: str = setting(_CREATE.port, "serial device of the Create (a pty path works)")
+    baud: int = setting(_CREATE.baud, "baud rate: 57600 for a Create 1, 115200 for a Create 2")
+    model: str = setting(_CREATE.model, "create1 or create2 (wheel geometry, stream contents)")
+    mode: str = setting(_CREATE.mode, "OI mode: safe (the robot stops at cliffs and drops) or full")
+    odometry: str = setting(
+        _CREATE.odometry, "distance_angle (Create 1 packets 19/20) or encoders (Create 2 packets 43/44)")
+    max_linear: float = setting(_CREATE.max_linear, "m/s, largest forward speed accepted from cmd_vel")
+    max_angular: float = setting(_CREATE.max_angular, "rad/s, largest turn rate accepted from cmd_vel")
+    watchdog_timeout: float = setting(_CREATE.watchdog_timeout, "s without cmd_vel before the wheels stop")
+    stream_timeout: float = setting(_CREATE.stream_timeout, "s without sensor data before reconnecting")
+    publish_rate: float = setting(50.0, "Hz, odometry rate (the Create streams at 66 Hz)")
+    odom_frame: str = setting("odom", "frame of the odometry pose")
+    base_frame: str = setting("base_link", "frame of the robot base")
 
 
 class CreateBaseNode(Node):
     def __init__(self, **node_options) -> None:
         super().__init__("create_base", **node_options)
-        port = declare(self, "port", "/dev/ttyUSB0", "serial device of the Create (a pty path works)")
-        baud = int(declare(self, "baud", 57600, "baud rate: 57600 for a Create 1, 115200 for a Create 2"))
-        model = declare(self, "model", "create1", "create1 or create2 (wheel geometry, stream contents)")
-        mode = declare(self, "mode", "safe", "OI mode: safe (the robot stops at cliffs and drops) or full")
-        odometry = declare(self, "odometry", "distance_angle",
-                           "distance_angle (Create 1 packets 19/20) or encoders (Create 2 packets 43/44)")
-        max_linear = positive(self, "max_linear", 0.3, "m/s, largest forward speed accepted from cmd_vel")
-        max_angular = positive(self, "max_angular", 2.0, "rad/s, largest turn rate accepted from cmd_vel")
-        watchdog = positive(self, "watchdog_timeout", 0.2, "s without cmd_vel before the wheels stop")
-        stream_timeout = positive(self, "stream_timeout", 0.5, "s without sensor data before reconnecting")
-        rate = positive(self, "publish_rate", 50.0, "Hz, odometry rate (the Create streams at 66 Hz)")
-        self.odom_frame = declare(self, "odom_frame", "odom", "frame of the odometry pose")
-        self.base_frame = declare(self, "base_frame", "base_link", "frame of the robot base")
+        settings = self.settings = declare_settings(self, CreateBaseSettings)
+        require_positive(settings, "max_linear", "max_angular", "watchdog_timeout", "stream_timeout", "publish_rate")
+        port, rate = settings.port, float(settings.publish_rate)
+        self.odom_frame = settings.odom_frame
+        self.base_frame = settings.base_frame
         require(bool(port), "parameter port must name a device")
         config = CreateConfig(
-            port=port, baud=baud, model=model, mode=mode, odometry=odometry, max_linear=max_linear,
-            max_angular=max_angular, watchdog_timeout=watchdog, stream_timeout=stream_timeout,
+            port=port, baud=int(settings.baud), model=settings.model, mode=settings.mode,
+            odometry=settings.odometry, max_linear=float(settings.max_linear),
+            max_angular=float(settings.max_angular), watchdog_timeout=float(settings.watchdog_timeout),
+            stream_timeout=float(settings.stream_timeout),
         )
         try:
             self.driver = CreateDriver(config, on_event=lambda level, text: log_event(self, level, text))
         except ValueError as error:
             raise ParameterError(str(error)) from None
-        self.odom_publisher = self.create_publisher(Odometry, "odom", SENSOR_PUBLISHER_QOS)
-        self.battery_publisher = self.create_publisher(BatteryState, "battery", SENSOR_PUBLISHER_QOS)
+        self.odom_publisher = self.create_publisher(Odometry, "odom", SENSOR_PUBLISHER)
+        self.battery_publisher = self.create_publisher(BatteryState, "battery", SENSOR_PUBLISHER)
         self.bumper_publisher = self.create_publisher(Bool, "bumper", 10)
         self.drop_publisher = self.create_publisher(Bool, "wheel_drop", 10)
         self.create_subscription(Twist, "cmd_vel", self.on_cmd_vel, qos_profile_sensor_data)

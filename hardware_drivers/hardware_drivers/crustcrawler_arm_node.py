@@ -20,6 +20,8 @@ overheating, input voltage..., joints not answering). Accepts
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -28,43 +30,106 @@ from trajectory_msgs.msg import JointTrajectory
 
 from hardware_drivers.dynamixel_driver import ArmConfig, ArmDriver, JointGoalError, joint_configs
 from hardware_drivers.node_support import (
-    SENSOR_PUBLISHER_QOS,
     DiagnosticsReporter,
     ParameterError,
-    declare,
-    floats,
+    declare_numbers,
     log_event,
-    positive,
+    numbers,
     require,
+    require_positive,
     run_node,
 )
+from tiling_ros.parameters import declare_settings, declare_values, setting, setting_names
+from tiling_ros.qos import SENSOR_PUBLISHER
+from tiling_ros.stamps import stamp_to_seconds
+
+_BUS = ArmConfig(port="", joints=())  # the bus defaults
 
 ARM_JOINT_NAMES = ["base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll"]
+JOINT_NAMES = [*ARM_JOINT_NAMES, "gripper"]
+# per joint, when the arm description does not list it
+LOWER_LIMIT, UPPER_LIMIT, MAX_VELOCITY = -2.6, 2.6, 1.0  # rad, rad, rad/s
+POSE_ANGLE, OFFSET, DIRECTION = 0.0, 0.0, 1  # rad, rad, +1 or -1
+
+
+@dataclass(frozen=True)
+class ArmDescriptionSettings:
+    """The arm's description (config/crustcrawler_arm.yaml), shared by crustcrawler_arm and m3_robot.
+
+    The per-joint lists default to one value per joint of `joint_names` (`for_joints`); each named
+    pose is a parameter of its own, `named_poses.<name>`, of one angle per arm joint.
+    """
+
+    joint_names: list[str] = setting(JOINT_NAMES, "joint names: the five arm joints, then the gripper")  # noqa: RUF009
+    joint_lower_limits: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [LOWER_LIMIT] * len(JOINT_NAMES), "rad, lower joint limits")
+    joint_upper_limits: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [UPPER_LIMIT] * len(JOINT_NAMES), "rad, upper joint limits")
+    joint_max_velocities: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [MAX_VELOCITY] * len(JOINT_NAMES), "rad/s, joint speed limits")
+    gripper_joint: str = setting("gripper", "name of the gripper joint")
+    gripper_open: float = setting(0.6, "rad, gripper joint angle fully open")
+    gripper_closed: float = setting(-0.6, "rad, gripper joint angle fully closed")
+    named_pose_names: list[str] = setting(["home", "stow"], "names of the named arm poses")  # noqa: RUF009
+    arm_link_lengths: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.065, 0.152, 0.132, 0.105],
+        "m: shoulder height above the arm base, upper arm, forearm, wrist axis to fingertips")
+
+    @classmethod
+    def for_joints(cls, names: list[str]) -> ArmDescriptionSettings:
+        """The defaults for an arm of these joints."""
+        n = len(names)
+        return cls(joint_names=list(names), joint_lower_limits=[LOWER_LIMIT] * n,
+                   joint_upper_limits=[UPPER_LIMIT] * n, joint_max_velocities=[MAX_VELOCITY] * n)
+
+
+@dataclass(frozen=True)
+class CrustCrawlerArmSettings:
+    """The parameters of crustcrawler_arm besides the arm's description (config/hardware_drivers.yaml
+    and config/crustcrawler_arm.yaml), with their defaults; the per-joint lists as `for_joints`."""
+
+    port: str = setting("/dev/ttyUSB1", "serial device of the Dynamixel bus (a pty path works)")
+    baud: int = setting(_BUS.baud, "baud rate of the bus (AX-12 default 1000000)")
+    servo_ids: list[int] = setting(  # noqa: RUF009 - a field() with a default_factory
+        list(range(1, len(JOINT_NAMES) + 1)), "servo id of each joint")
+    joint_offsets: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [OFFSET] * len(JOINT_NAMES), "rad, servo angle when the joint is at 0")
+    joint_directions: list[int] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [DIRECTION] * len(JOINT_NAMES), "+1 or -1: servo angle = direction * joint angle + offset")
+    rate: float = setting(_BUS.rate, "Hz, joint state reads and goal writes")
+    reply_timeout: float = setting(_BUS.reply_timeout, "s to wait for a servo's status packet")
+    retries: int = setting(_BUS.retries, "attempts per servo transaction before giving up")
+    stall_torque: float = setting(1.5, "N·m, AX-12 stall torque (effort estimate)")
+
+    @classmethod
+    def for_joints(cls, count: int) -> CrustCrawlerArmSettings:
+        """The defaults for an arm of `count` joints."""
+        return cls(servo_ids=list(range(1, count + 1)), joint_offsets=[OFFSET] * count,
+                   joint_directions=[DIRECTION] * count)
 
 
 def declare_arm_description(node: Node) -> dict:
     """The arm's description (``config/crustcrawler_arm.yaml``), shared with ``m3_robot``."""
-    names = list(declare(node, "joint_names", [*ARM_JOINT_NAMES, "gripper"],
-                         "joint names: the five arm joints, then the gripper"))
+    names = list(declare_values(node, ArmDescriptionSettings(), names=["joint_names"])["joint_names"])
     n = len(names)
     require(n >= 1, "parameter joint_names is empty")
-    lower = floats(node, "joint_lower_limits", [-2.6] * n, "rad, lower joint limits", n)
-    upper = floats(node, "joint_upper_limits", [2.6] * n, "rad, upper joint limits", n)
-    velocities = floats(node, "joint_max_velocities", [1.0] * n, "rad/s, joint speed limits", n)
-    gripper = declare(node, "gripper_joint", "gripper", "name of the gripper joint")
+    defaults = ArmDescriptionSettings.for_joints(names)  # the per-joint lists sized to these joints
+    rest = [name for name in setting_names(ArmDescriptionSettings) if name != "joint_names"]
+    arm = replace(defaults, **declare_values(node, defaults, names=rest))
+    lower = numbers(arm, "joint_lower_limits", n)
+    upper = numbers(arm, "joint_upper_limits", n)
+    velocities = numbers(arm, "joint_max_velocities", n)
+    gripper = arm.gripper_joint
     require(gripper in names, f"gripper_joint '{gripper}' is not in joint_names")
-    gripper_open = float(declare(node, "gripper_open", 0.6, "rad, gripper joint angle fully open"))
-    gripper_closed = float(declare(node, "gripper_closed", -0.6, "rad, gripper joint angle fully closed"))
-    pose_names = list(declare(node, "named_pose_names", ["home", "stow"], "names of the named arm poses"))
+    gripper_open, gripper_closed = float(arm.gripper_open), float(arm.gripper_closed)
     arm_joints = [j for j in names if j != gripper]
     poses = {}
-    for pose in pose_names:
-        values = floats(node, f"named_poses.{pose}", [0.0] * len(arm_joints),
-                        f"rad, arm joint angles of the pose '{pose}' ({', '.join(arm_joints)})",
-                        len(arm_joints))
+    for pose in list(arm.named_pose_names):
+        values = declare_numbers(node, f"named_poses.{pose}", [POSE_ANGLE] * len(arm_joints),
+                                 f"rad, arm joint angles of the pose '{pose}' ({', '.join(arm_joints)})",
+                                 len(arm_joints))
         poses[pose] = dict(zip(arm_joints, values, strict=True))
-    links = floats(node, "arm_link_lengths", [0.065, 0.152, 0.132, 0.105],
-                   "m: shoulder height above the arm base, upper arm, forearm, wrist axis to fingertips", 4)
+    links = numbers(arm, "arm_link_lengths", 4)
     require(all(v > 0 for v in links), "arm_link_lengths must be positive")
     limits = dict(zip(names, zip(lower, upper, strict=True), strict=True))
     for pose, values in poses.items():
@@ -84,18 +149,20 @@ def declare_arm_description(node: Node) -> dict:
 class CrustCrawlerArmNode(Node):
     def __init__(self, **node_options) -> None:
         super().__init__("crustcrawler_arm", **node_options)
-        port = declare(self, "port", "/dev/ttyUSB1", "serial device of the Dynamixel bus (a pty path works)")
-        baud = int(declare(self, "baud", 1000000, "baud rate of the bus (AX-12 default 1000000)"))
         arm = declare_arm_description(self)
         n = len(arm["names"])
-        ids = [int(v) for v in declare(self, "servo_ids", list(range(1, n + 1)), "servo id of each joint")]
-        offsets = floats(self, "joint_offsets", [0.0] * n, "rad, servo angle when the joint is at 0", n)
-        directions = [int(v) for v in declare(self, "joint_directions", [1] * n,
-                                              "+1 or -1: servo angle = direction * joint angle + offset")]
-        rate = positive(self, "rate", 20.0, "Hz, joint state reads and goal writes")
-        reply_timeout = positive(self, "reply_timeout", 0.03, "s to wait for a servo's status packet")
-        retries = int(declare(self, "retries", 3, "attempts per servo transaction before giving up"))
-        self.stall_torque = positive(self, "stall_torque", 1.5, "N·m, AX-12 stall torque (effort estimate)")
+        settings = self.settings = declare_settings(
+            self, CrustCrawlerArmSettings, defaults=CrustCrawlerArmSettings.for_joints(n)
+        )
+        port, baud = settings.port, int(settings.baud)
+        ids = [int(v) for v in settings.servo_ids]
+        offsets = numbers(settings, "joint_offsets", n)
+        directions = [int(v) for v in settings.joint_directions]
+        require_positive(settings, "rate", "reply_timeout")
+        rate, reply_timeout = float(settings.rate), float(settings.reply_timeout)
+        retries = int(settings.retries)
+        require_positive(settings, "stall_torque")
+        self.stall_torque = float(settings.stall_torque)
         require(bool(port), "parameter port must name a device")
         try:
             joints = joint_configs(arm["names"], ids, offsets, directions, arm["lower"], arm["upper"],
@@ -106,7 +173,7 @@ class CrustCrawlerArmNode(Node):
         except ValueError as error:
             raise ParameterError(str(error)) from None
         self.arm = arm
-        self.joint_publisher = self.create_publisher(JointState, "joint_states", SENSOR_PUBLISHER_QOS)
+        self.joint_publisher = self.create_publisher(JointState, "joint_states", SENSOR_PUBLISHER)
         self.create_subscription(JointTrajectory, "joint_trajectory", self.on_trajectory, 10)
         self.create_subscription(String, "named_pose", self.on_named_pose, 10)
         self.create_service(SetBool, "torque_enable", self.on_torque)
@@ -135,7 +202,7 @@ class CrustCrawlerArmNode(Node):
                                          f"{len(msg.joint_names)} joints")
                 goals = dict(zip(msg.joint_names, point.positions, strict=True))
                 self.driver.check_goal(goals)
-                t = point.time_from_start.sec + point.time_from_start.nanosec * 1e-9
+                t = stamp_to_seconds(point.time_from_start)
                 points.append((t, goals))
         except JointGoalError as error:
             self.get_logger().error(f"trajectory refused: {error}")

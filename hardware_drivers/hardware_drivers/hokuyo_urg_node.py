@@ -12,42 +12,56 @@ sensor is switched from SCIP 1.1 to 2.0 when needed and reconnected after errors
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 
 from hardware_drivers.node_support import (
-    SENSOR_PUBLISHER_QOS,
     DiagnosticsReporter,
     ParameterError,
-    declare,
     log_event,
-    positive,
     require,
+    require_positive,
     run_node,
 )
 from hardware_drivers.urg_driver import UrgConfig, UrgDriver
+from tiling_ros.parameters import declare_settings, setting
+from tiling_ros.qos import SENSOR_PUBLISHER
+
+_URG = UrgConfig(port="/dev/ttyACM0")
+
+
+@dataclass(frozen=True)
+class HokuyoUrgSettings:
+    """The parameters of hokuyo_urg (config/hardware_drivers.yaml), with their defaults."""
+
+    port: str = setting(_URG.port, "serial device of the URG (a pty path works)")
+    baud: int = setting(_URG.baud, "baud rate tried first (then 19200, 38400, 115200)")
+    frame_id: str = setting("laser", "frame of the scans")
+    cluster: int = setting(_URG.cluster, "adjacent steps merged into one range (1..99)")
+    skip: int = setting(_URG.skip, "scans skipped between two published (0..9)")
+    error_limit: int = setting(_URG.error_limit, "bad scans in a row before reconnecting")
+    scan_timeout: float = setting(_URG.scan_timeout, "s without a scan before reconnecting")
 
 
 class HokuyoUrgNode(Node):
     def __init__(self, **node_options) -> None:
         super().__init__("hokuyo_urg", **node_options)
-        port = declare(self, "port", "/dev/ttyACM0", "serial device of the URG (a pty path works)")
-        baud = int(declare(self, "baud", 115200, "baud rate tried first (then 19200, 38400, 115200)"))
-        self.frame_id = declare(self, "frame_id", "laser", "frame of the scans")
-        cluster = int(declare(self, "cluster", 1, "adjacent steps merged into one range (1..99)"))
-        skip = int(declare(self, "skip", 0, "scans skipped between two published (0..9)"))
-        error_limit = int(declare(self, "error_limit", 4, "bad scans in a row before reconnecting"))
-        scan_timeout = positive(self, "scan_timeout", 1.0, "s without a scan before reconnecting")
+        settings = self.settings = declare_settings(self, HokuyoUrgSettings)
+        require_positive(settings, "scan_timeout")
+        port = settings.port
+        self.frame_id = settings.frame_id
         require(bool(port), "parameter port must name a device")
         try:
-            config = UrgConfig(port=port, baud=baud, cluster=cluster, skip=skip, error_limit=error_limit,
-                               scan_timeout=scan_timeout)
+            config = UrgConfig(port=port, baud=int(settings.baud), cluster=int(settings.cluster),
+                               skip=int(settings.skip), error_limit=int(settings.error_limit),
+                               scan_timeout=float(settings.scan_timeout))
             self.driver = UrgDriver(config, on_event=lambda level, text: log_event(self, level, text))
         except ValueError as error:
             raise ParameterError(str(error)) from None
-        self.scan_publisher = self.create_publisher(LaserScan, "scan", SENSOR_PUBLISHER_QOS)
+        self.scan_publisher = self.create_publisher(LaserScan, "scan", SENSOR_PUBLISHER)
         self.diagnostics = DiagnosticsReporter(
             self, f"{self.get_fully_qualified_name()}: Hokuyo URG", port, self.driver.health.snapshot
         )

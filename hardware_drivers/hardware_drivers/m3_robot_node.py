@@ -36,7 +36,7 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState, LaserScan
 from std_msgs.msg import Bool
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -49,14 +49,12 @@ from hardware_drivers.goal_slot import GoalSlot
 from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
 from hardware_drivers.node_support import (
-    DIAGNOSTICS_QOS,
     DiagnosticsReporter,
     ParameterError,
-    declare,
-    floats,
-    positive,
+    numbers,
     publish_last,
     require,
+    require_positive,
     run_node,
 )
 from hardware_drivers.place_tile_mission import (
@@ -74,23 +72,62 @@ from tiling_assembly.structure import StructureError, TileType
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import PlaceTile
 from tiling_assembly_msgs.msg import Structure as StructureMsg
+from tiling_ros.parameters import declare_settings, setting
+from tiling_ros.qos import DIAGNOSTICS, LATCHED
+from tiling_ros.stamps import stamp_to_seconds
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                     reliability=ReliabilityPolicy.RELIABLE)
 DEVICE_NODES = ("create_base", "crustcrawler_arm", "hokuyo_urg")
 ARM_JOINTS = ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
+_MISSION = MissionConfig()  # the mission's defaults are this node's
+
+
+@dataclass(frozen=True)
+class M3RobotSettings:
+    """The parameters of m3_robot besides the arm's description (config/hardware_drivers.yaml), with
+    their defaults: those of the mission (`MissionConfig`)."""
+
+    carry_pose: str = setting("carry", "named arm pose held while driving")
+    arm_mount: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        list(_MISSION.arm_mount), "x, y, z (m), yaw (rad) of the arm base in base_link")
+    laser_mount: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        list(_MISSION.laser_mount), "x, y (m), yaw (rad) of the laser in base_link")
+    pick_standoff: float = setting(_MISSION.pick_standoff, "m, base_link to the cache point at the stop")
+    place_standoff: float = setting(_MISSION.place_standoff, "m, base_link to the tile goal at the stop")
+    preferred_reach: float = setting(_MISSION.preferred_reach, "m from the arm base to a tile to pick")
+    reach_tolerance: float = setting(_MISSION.reach_tolerance, "m, accepted deviation from preferred_reach")
+    cache_search_radius: float = setting(_MISSION.cache_search_radius, "m around the cache point to look")
+    approach_height: float = setting(_MISSION.approach_height, "m above the grasp height before going down")
+    arm_speed: float = setting(_MISSION.arm_speed, "rad/s for planned arm moves")
+    joint_tolerance: float = setting(_MISSION.joint_tolerance, "rad, a joint counts as arrived this close")
+    grasp_margin: float = setting(_MISSION.grasp_margin, "rad, the gripper must stop this far from closed")
+    max_linear: float = setting(_MISSION.navigation.max_linear, "m/s, driving speed")
+    max_angular: float = setting(_MISSION.navigation.max_angular, "rad/s, turning speed")
+    position_tolerance: float = setting(
+        _MISSION.navigation.position_tolerance, "m, stop this close to a drive goal")
+    yaw_tolerance: float = setting(_MISSION.navigation.yaw_tolerance, "rad, final heading tolerance")
+    navigation_timeout: float = setting(_MISSION.navigation_timeout, "s allowed per drive")
+    retreat_distance: float = setting(_MISSION.retreat_distance, "m to back away after placing")
+    tile_max_rms: float = setting(_MISSION.localization.max_rms, "m, worst accepted fit of a tile's outline")
+    device_timeout: float = setting(1.0, "s without odom/joint_states before a device counts as lost")
+    overhead_fix_weight: float = setting(0.3, "weight (0..1] of each overhead fix")
+    structure_file: str = setting("", "structure file for the tile footprints; empty: use /structure")
+
+
+# the settings of MissionConfig's lengths, speeds and times, all positive
+_POSITIVE = ("pick_standoff", "place_standoff", "preferred_reach", "reach_tolerance", "cache_search_radius",
+             "approach_height", "arm_speed", "joint_tolerance", "grasp_margin", "max_linear", "max_angular",
+             "position_tolerance", "yaw_tolerance", "navigation_timeout", "retreat_distance", "tile_max_rms")
 
 
 class M3RobotNode(Node):
     def __init__(self, **node_options) -> None:
         super().__init__("m3_robot", **node_options)
         self.config = self._mission_config()
-        self.device_timeout = positive(self, "device_timeout", 1.0,
-                                       "s without odom/joint_states before a device counts as lost")
-        fix_weight = positive(self, "overhead_fix_weight", 0.3, "weight (0..1] of each overhead fix")
+        require_positive(self.settings, "device_timeout", "overhead_fix_weight")
+        self.device_timeout = float(self.settings.device_timeout)
+        fix_weight = float(self.settings.overhead_fix_weight)
         require(fix_weight <= 1.0, "overhead_fix_weight must be in (0, 1]")
-        structure_file = declare(self, "structure_file", "",
-                                 "structure file for the tile footprints; empty: use /structure")
+        structure_file = self.settings.structure_file
         self.tile_types: dict[str, TileType] = {}
         if structure_file:
             try:
@@ -120,7 +157,7 @@ class M3RobotNode(Node):
                                  callback_group=group)
         self.create_subscription(Bool, "wheel_drop", lambda m: setattr(self, "_wheel_drop", m.data), 10,
                                  callback_group=group)
-        self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, DIAGNOSTICS_QOS,
+        self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, DIAGNOSTICS,
                                  callback_group=group)
         self.create_subscription(StructureMsg, "/structure", self.on_structure, LATCHED, callback_group=group)
         self.health = DeviceHealth(on_event=None)
@@ -141,7 +178,8 @@ class M3RobotNode(Node):
         arm = declare_arm_description(self)
         require(all(j in arm["names"] for j in ARM_JOINTS),
                 f"joint_names must contain {', '.join(ARM_JOINTS)}")
-        carry_name = declare(self, "carry_pose", "carry", "named arm pose held while driving")
+        settings = self.settings = declare_settings(self, M3RobotSettings)
+        carry_name = settings.carry_pose
         require(carry_name in arm["poses"], f"carry_pose '{carry_name}' is not one of named_pose_names")
         geometry = ArmGeometry(
             *arm["links"],
@@ -152,10 +190,10 @@ class M3RobotNode(Node):
             geometry.validate()
         except ValueError as error:
             raise ParameterError(str(error)) from None
-
-        def length(name: str, default: float, description: str) -> float:
-            return positive(self, name, default, description)
-
+        arm_mount = tuple(numbers(settings, "arm_mount", 4))
+        laser_mount = tuple(numbers(settings, "laser_mount", 3))
+        require_positive(settings, *_POSITIVE)
+        length = {name: float(getattr(settings, name)) for name in _POSITIVE}
         return MissionConfig(
             geometry=geometry,
             arm_joints=ARM_JOINTS,
@@ -163,36 +201,32 @@ class M3RobotNode(Node):
             gripper_open=arm["gripper_open"],
             gripper_closed=arm["gripper_closed"],
             carry_pose=tuple(arm["poses"][carry_name][j] for j in ARM_JOINTS),
-            arm_mount=tuple(floats(self, "arm_mount", [0.10, 0.0, 0.07, 0.0],
-                                   "x, y, z (m), yaw (rad) of the arm base in base_link", 4)),
-            laser_mount=tuple(floats(self, "laser_mount", [0.16, 0.0, 0.0],
-                                     "x, y (m), yaw (rad) of the laser in base_link", 3)),
-            pick_standoff=length("pick_standoff", 0.35, "m, base_link to the cache point at the stop"),
-            place_standoff=length("place_standoff", 0.32, "m, base_link to the tile goal at the stop"),
-            preferred_reach=length("preferred_reach", 0.22, "m from the arm base to a tile to pick"),
-            reach_tolerance=length("reach_tolerance", 0.05, "m, accepted deviation from preferred_reach"),
-            cache_search_radius=length("cache_search_radius", 0.2, "m around the cache point to look"),
-            approach_height=length("approach_height", 0.05, "m above the grasp height before going down"),
-            arm_speed=length("arm_speed", 0.8, "rad/s for planned arm moves"),
-            joint_tolerance=length("joint_tolerance", 0.04, "rad, a joint counts as arrived this close"),
-            grasp_margin=length("grasp_margin", 0.08, "rad, the gripper must stop this far from closed"),
+            arm_mount=arm_mount,  # type: ignore[arg-type]
+            laser_mount=laser_mount,  # type: ignore[arg-type]
+            pick_standoff=length["pick_standoff"],
+            place_standoff=length["place_standoff"],
+            preferred_reach=length["preferred_reach"],
+            reach_tolerance=length["reach_tolerance"],
+            cache_search_radius=length["cache_search_radius"],
+            approach_height=length["approach_height"],
+            arm_speed=length["arm_speed"],
+            joint_tolerance=length["joint_tolerance"],
+            grasp_margin=length["grasp_margin"],
             navigation=GoToPoseParams(
-                max_linear=length("max_linear", 0.2, "m/s, driving speed"),
-                max_angular=length("max_angular", 1.0, "rad/s, turning speed"),
-                position_tolerance=length("position_tolerance", 0.01, "m, stop this close to a drive goal"),
-                yaw_tolerance=length("yaw_tolerance", 0.02, "rad, final heading tolerance"),
+                max_linear=length["max_linear"],
+                max_angular=length["max_angular"],
+                position_tolerance=length["position_tolerance"],
+                yaw_tolerance=length["yaw_tolerance"],
             ),
-            navigation_timeout=length("navigation_timeout", 90.0, "s allowed per drive"),
-            retreat_distance=length("retreat_distance", 0.10, "m to back away after placing"),
-            localization=LocalizationParams(
-                max_rms=length("tile_max_rms", 0.008, "m, worst accepted fit of a tile's outline"),
-            ),
+            navigation_timeout=length["navigation_timeout"],
+            retreat_distance=length["retreat_distance"],
+            localization=LocalizationParams(max_rms=length["tile_max_rms"]),
         )
 
     # ------------------------------------------------------------------ inputs
     def on_scan(self, msg: LaserScan) -> None:
         scan = LaserScanData(
-            stamp=msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
+            stamp=stamp_to_seconds(msg.header.stamp),
             angle_min=msg.angle_min, angle_increment=msg.angle_increment,
             ranges=np.asarray(msg.ranges, dtype=float), range_min=msg.range_min, range_max=msg.range_max,
             time_increment=msg.time_increment, scan_time=msg.scan_time,

@@ -16,6 +16,7 @@ from rclpy.qos import qos_profile_sensor_data
 
 from hardware_drivers.base_navigation import PoseFusion
 from hardware_drivers.planar_pose import Pose2D
+from tiling_ros.stamps import stamp_to_seconds
 
 
 def yaw_of(q) -> float:
@@ -46,7 +47,7 @@ class MapPoseTracker:
 
     def _on_odom(self, msg: Odometry) -> None:
         pose = Pose2D(msg.pose.pose.position.x, msg.pose.pose.position.y, yaw_of(msg.pose.pose.orientation))
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp = stamp_to_seconds(msg.header.stamp)
         with self._lock:
             self.fusion.update_odometry(pose)
             self._history.append((stamp, pose))
@@ -60,7 +61,7 @@ class MapPoseTracker:
             )
             return
         pose = Pose2D(msg.pose.position.x, msg.pose.position.y, yaw_of(msg.pose.orientation))
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp = stamp_to_seconds(msg.header.stamp)
         with self._lock:
             # the camera saw the base where odometry put it at the image's time, not now
             self.fusion.update_fix(pose, self._odometry_at(stamp))

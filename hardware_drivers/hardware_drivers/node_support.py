@@ -1,5 +1,6 @@
-"""What the driver nodes share on the ROS side: declared and validated parameters, diagnostics
-from a driver's health, driver events as log lines, and a clean main loop.
+"""What the driver nodes share on the ROS side: checks of their settings (declared through
+`tiling_ros.parameters`), diagnostics from a driver's health, driver events as log lines, and a
+clean main loop.
 
 Kept apart from the drivers so that they stay ROS-free; every node uses these the same way.
 """
@@ -11,31 +12,21 @@ from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from hardware_drivers.device_health import HealthReport, Level
-from tiling_assembly import spinning
+from tiling_ros import spinning
+from tiling_ros.parameters import declare_parameter
+from tiling_ros.qos import DIAGNOSTICS
 
 NodeT = TypeVar("NodeT", bound=Node)
-
-DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-# REP 2003: sensor drivers publish reliable, so best-effort and reliable subscribers both connect
-SENSOR_PUBLISHER_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
 
 
 class ParameterError(ValueError):
     """A parameter value the node cannot start with (one line)."""
-
-
-def declare(node: Node, name: str, default: Any, description: str) -> Any:
-    """Declare a parameter with a description and return its value."""
-    node.declare_parameter(name, default, ParameterDescriptor(description=description))
-    return node.get_parameter(name).value
 
 
 def require(condition: bool, message: str) -> None:
@@ -43,18 +34,29 @@ def require(condition: bool, message: str) -> None:
         raise ParameterError(message)
 
 
-def positive(node: Node, name: str, default: float, description: str) -> float:
-    value = float(declare(node, name, default, description))
-    require(value > 0, f"parameter {name} must be positive, got {value}")
-    return value
+def require_positive(settings: Any, *names: str) -> None:
+    """Each named setting must be a positive number."""
+    for name in names:
+        value = float(getattr(settings, name))
+        require(value > 0, f"parameter {name} must be positive, got {value}")
 
 
-def floats(node: Node, name: str, default: Sequence[float], description: str,
-           length: int | None = None) -> list[float]:
-    value = [float(v) for v in declare(node, name, list(map(float, default)), description)]
+def numbers(settings: Any, name: str, length: int | None = None) -> list[float]:
+    """A list setting as floats, of `length` numbers when given."""
+    return checked_numbers(name, getattr(settings, name), length)
+
+
+def checked_numbers(name: str, values: Sequence[float], length: int | None = None) -> list[float]:
+    value = [float(v) for v in values]
     if length is not None:
         require(len(value) == length, f"parameter {name} needs {length} numbers, got {len(value)}")
     return value
+
+
+def declare_numbers(node: Node, name: str, default: Sequence[float], description: str,
+                    length: int | None = None) -> list[float]:
+    """One list-of-floats parameter whose name depends on other parameters (a named arm pose)."""
+    return checked_numbers(name, declare_parameter(node, name, [float(v) for v in default], description), length)
 
 
 def log_event(node: Node, level: Level, message: str) -> None:
@@ -88,7 +90,7 @@ class DiagnosticsReporter:
         self.name = name
         self.hardware_id = hardware_id
         self.health = health
-        self.publisher = node.create_publisher(DiagnosticArray, "/diagnostics", DIAGNOSTICS_QOS)
+        self.publisher = node.create_publisher(DiagnosticArray, "/diagnostics", DIAGNOSTICS)
         self._last: tuple[int, str] | None = None
         self._since = 0.0
         self._period = period
@@ -122,7 +124,7 @@ def publish_last(publisher: Publisher, message: Any, timeout: float = 1.0) -> No
 def run_node(make_node: Callable[[], NodeT], executor: Callable[[], Executor] = SingleThreadedExecutor,
              on_stop: Callable[[NodeT], None] | None = None,
              on_shutdown: Callable[[NodeT], None] | None = None) -> int:
-    """A driver node's whole process (`tiling_assembly.spinning.run_node`): a ParameterError is one
+    """A driver node's whole process (`tiling_ros.spinning.run_node`): a ParameterError is one
     line on stderr and exit code 2. Returns the exit code."""
     return spinning.run_node(make_node, (ParameterError,), args=sys.argv, executor=executor,
                              on_stop=on_stop, on_shutdown=on_shutdown)

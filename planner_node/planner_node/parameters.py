@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +24,7 @@ from planner_node.planner import (
     default_robot_names,
 )
 from tiling_assembly.time_model import TimeModel
+from tiling_ros.parameters import setting
 
 NODE_NAME = "planner_node"
 _DEFAULT_TIMES = TimeModel()
@@ -35,16 +36,25 @@ class ParameterError(ValueError):
 
 @dataclass(frozen=True)
 class PlannerParameters:
-    structure_file: str = ""
-    num_robots: int = 2
-    robot_names: tuple[str, ...] = ()
-    method: str = Method.DEFAULT.value
-    improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT
-    help_neighbours: bool = True
-    pick_time: float = _DEFAULT_TIMES.pick_time
-    place_time: float = _DEFAULT_TIMES.place_time
-    travel_speed: float = _DEFAULT_TIMES.travel_speed
-    type_place_time: Mapping[str, float] = field(default_factory=dict)
+    """The planner's parameters with their defaults and descriptions (config/planner_node.yaml)."""
+
+    structure_file: str = setting("", "Structure YAML file to build (the contract in DESIGN.md); required")
+    num_robots: int = setting(2, "Number of assembly robots, named robot1..robotN, when robot_names is not set")
+    robot_names: tuple[str, ...] = setting((), "Namespaces of the assembly robots; overrides num_robots")
+    method: str = setting(
+        Method.DEFAULT.value, "Planning method: default, paper (section 2.1 as published) or round-robin (baseline)")
+    improve_time_limit: float = setting(
+        DEFAULT_IMPROVE_TIME_LIMIT, "Seconds of local search the default method may spend (s)")
+    help_neighbours: bool = setting(
+        True, "Default method: a robot that would wait may place ready tiles of another robot (sooner finish; "
+        "regions may then split). false keeps every robot to its own region")
+    pick_time: float = setting(_DEFAULT_TIMES.pick_time, "Time to find and grasp a tile at its parts cache (s)")
+    place_time: float = setting(
+        _DEFAULT_TIMES.place_time, "Time to lower, release and retract a tile at the structure (s)")
+    travel_speed: float = setting(
+        _DEFAULT_TIMES.travel_speed, "Mean speed of a robot base between a cache and the structure (m/s)")
+    type_place_time: Mapping[str, float] = setting(
+        {}, "Place time of a tile of this type (s); types not listed take place_time")
 
     def robots(self) -> list[str]:
         """robot_names when given, else robot1..robotN."""

@@ -18,40 +18,26 @@ from __future__ import annotations
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException, ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from planner_node.parameters import NODE_NAME, ParameterError, PlannerParameters, parameters_from_values
 from planner_node.plan_messages import plan_to_msg
 from planner_node.planner import Plan, PlanningError, plan_assembly, replan_assembly
 from tiling_assembly.messages import structure_to_msg
-from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.msg import AssemblyPlan, Structure
 from tiling_assembly_msgs.srv import Replan
+from tiling_ros.parameters import declare_parameter, declare_values, setting_description, setting_names
+from tiling_ros.qos import LATCHED
+from tiling_ros.spinning import run_node
 
 _DEFAULTS = PlannerParameters()
-_DESCRIPTIONS = {
-    "structure_file": "Structure YAML file to build (the contract in DESIGN.md); required",
-    "num_robots": "Number of assembly robots, named robot1..robotN, when robot_names is not set",
-    "method": "Planning method: default, paper (section 2.1 as published) or round-robin (baseline)",
-    "improve_time_limit": "Seconds of local search the default method may spend (s)",
-    "help_neighbours": "Default method: a robot that would wait may place ready tiles of another "
-    "robot (sooner finish; regions may then split). false keeps every robot to its own region",
-    "pick_time": "Time to find and grasp a tile at its parts cache (s)",
-    "place_time": "Time to lower, release and retract a tile at the structure (s)",
-    "travel_speed": "Mean speed of a robot base between a cache and the structure (m/s)",
-}
-
-
-def latched_qos() -> QoSProfile:
-    return QoSProfile(
-        depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
-    )
+# declared from the settings as they are; robot_names has no default (unset: num_robots counts) and
+# type_place_time is one parameter per tile type of the structure (`type_place_time.<type>`)
+_PLAIN = [name for name in setting_names(PlannerParameters) if name not in ("robot_names", "type_place_time")]
 
 
 class PlannerNode(Node):
@@ -64,8 +50,8 @@ class PlannerNode(Node):
         self.parameters = self._declare_type_place_times(parameters)
         self.time_model = self.parameters.time_model()
         self.known_robots = self.parameters.robots()
-        self.structure_publisher = self.create_publisher(Structure, "/structure", latched_qos())
-        self.plan_publisher = self.create_publisher(AssemblyPlan, "/plan", latched_qos())
+        self.structure_publisher = self.create_publisher(Structure, "/structure", LATCHED)
+        self.plan_publisher = self.create_publisher(AssemblyPlan, "/plan", LATCHED)
         self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.revision = 0
         self.plan = plan_assembly(
@@ -78,16 +64,9 @@ class PlannerNode(Node):
         self.create_service(Replan, "/replan", self._on_replan)
 
     def _declare_parameters(self) -> PlannerParameters:
-        values = {}
-        for name, description in _DESCRIPTIONS.items():
-            default = getattr(_DEFAULTS, name)
-            values[name] = self.declare_parameter(
-                name, default, ParameterDescriptor(description=description)
-            ).value
-        self.declare_parameter(
-            "robot_names",
-            Parameter.Type.STRING_ARRAY,
-            ParameterDescriptor(description="Namespaces of the assembly robots; overrides num_robots"),
+        values = declare_values(self, _DEFAULTS, names=_PLAIN)
+        declare_parameter(
+            self, "robot_names", Parameter.Type.STRING_ARRAY, setting_description(PlannerParameters, "robot_names")
         )
         try:
             values["robot_names"] = list(self.get_parameter("robot_names").value)
@@ -100,15 +79,12 @@ class PlannerNode(Node):
 
     def _declare_type_place_times(self, parameters: PlannerParameters) -> PlannerParameters:
         """One parameter type_place_time.<type> per tile type of the structure."""
-        values = {name: getattr(parameters, name) for name in _DESCRIPTIONS}
+        values = {name: getattr(parameters, name) for name in _PLAIN}
         values["robot_names"] = list(parameters.robot_names)
         for type_name in self.structure.tile_types:
             name = f"type_place_time.{type_name}"
-            values[name] = self.declare_parameter(
-                name,
-                parameters.place_time,
-                ParameterDescriptor(description=f"Place time of a '{type_name}' tile (s)"),
-            ).value
+            description = f"Place time of a '{type_name}' tile (s)"
+            values[name] = declare_parameter(self, name, parameters.place_time, description)
         return parameters_from_values(values)[0]
 
     def _publish_plan(self, plan: Plan) -> None:

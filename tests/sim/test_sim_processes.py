@@ -34,9 +34,10 @@ from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import PlaceTile
 from tiling_assembly_msgs.srv import SimSnapshot
+from tiling_ros.qos import SIM_EVENTS
+from tiling_ros.stamps import stamp_to_nanoseconds
 from tiling_sim.robot_motion import placement_phases
 from tiling_sim.ros_domain import claim_domain_id
-from tiling_sim.sim_interface import EVENTS_QOS, stamp_ns
 from tiling_sim.sim_settings import RobotBodySettings
 
 pytestmark = pytest.mark.ros
@@ -78,7 +79,7 @@ class Simulator:
         self.clouds: list[PointCloud2] = []
         self.vi_poses: list[PoseStamped] = []
         self.node.create_subscription(String, "/sim/events", lambda m: self.events.append(json.loads(m.data)),
-                                      EVENTS_QOS)
+                                      SIM_EVENTS)
         self.node.create_subscription(PointCloud2, "/vi/camera/depth/points", self.clouds.append,
                                       QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
         self.node.create_subscription(PoseStamped, "/vi/overhead_pose", self.vi_poses.append, 50)
@@ -152,7 +153,7 @@ def test_a_placement_has_the_old_phases_duration_result_and_events(sim: Simulato
         seen.append((phase, [robots]))
 
     ticks: list[float] = []
-    sim.node.create_subscription(ClockMsg, "/clock", lambda m: ticks.append(stamp_ns(m.clock) * 1e-9), 100)
+    sim.node.create_subscription(ClockMsg, "/clock", lambda m: ticks.append(stamp_to_nanoseconds(m.clock) * 1e-9), 100)
     result = sim.place_tile(1, on_feedback)
     assert result.error_code == PlaceTile.Result.SUCCEEDED, result.message
     motion = RobotBodySettings().motion()
@@ -233,8 +234,8 @@ def test_kinect_frames_carry_the_time_of_the_world_they_show(sim: Simulator) -> 
     assert sim.spin_until(lambda: len(sim.clouds) >= 2, 60.0), "no Kinect frames"
     cloud = sim.clouds[-1]
     assert (cloud.height, cloud.width, cloud.header.frame_id) == (480, 640, "camera_depth_optical_frame")
-    stamps = {stamp_ns(p.header.stamp) for p in sim.vi_poses}
-    assert stamp_ns(cloud.header.stamp) in stamps  # the overhead cameras saw the VI robot at that time
+    stamps = {stamp_to_nanoseconds(p.header.stamp) for p in sim.vi_poses}
+    assert stamp_to_nanoseconds(cloud.header.stamp) in stamps  # the overhead cameras saw the VI robot at that time
     judged = [e for e in sim.events if e["event"] in ("scan_judged", "scan_unjudged")]
     assert judged and all(e["event"] == "scan_unjudged" for e in judged)  # no vi_node here: nobody judges
 

@@ -16,7 +16,7 @@ import time
 from rclpy.node import Node
 from std_msgs.msg import Int64, String
 
-from tiling_assembly.spinning import run_node
+from tiling_ros.spinning import run_node
 
 
 class Talker(Node):

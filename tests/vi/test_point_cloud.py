@@ -9,7 +9,7 @@ import pytest
 from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import PointCloud2, PointField
 
-from vi_node.point_cloud import CloudError, cloud_bytes, cloud_from_msg
+from tiling_ros.point_clouds import CloudError, cloud_bytes, cloud_from_msg
 
 
 def sample_cloud(height: int = 48, width: int = 64) -> np.ndarray:

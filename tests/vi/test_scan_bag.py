@@ -11,9 +11,9 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 from vi_helpers import SCANS
 
+from tiling_ros.point_clouds import cloud_from_msg
 from tiling_sim.scan_bag import CLOUD_TOPIC, POSE_TOPIC, ScanBagWriter, read_truth
 from vi_node.classify_bag import read_recording
-from vi_node.point_cloud import cloud_from_msg
 
 
 def test_written_bag_reads_back_with_rosbags(tmp_path: Path) -> None:

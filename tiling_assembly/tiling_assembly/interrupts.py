@@ -5,7 +5,7 @@ also while Python still imports rclpy, the messages or Open3D, which takes about
 longer on a loaded machine. Python's own handling then prints a traceback (SIGINT) or dies by the
 signal (SIGTERM, exit code -15). So the installed executables do not import their node module
 directly: `run_executable` first makes both signals raise KeyboardInterrupt, then imports the
-module and runs its `main`, which stops the node itself (`tiling_assembly.spinning.run_node`).
+module and runs its `main`, which stops the node itself (`tiling_ros.spinning.run_node`).
 
 This module imports nothing but the standard library, so that the handlers are in place a few
 milliseconds after the interpreter starts. What comes before (the interpreter's own start and

@@ -281,36 +281,50 @@ def trial_summary(record: TrialRecord) -> str:
             f"/ by robots {stats.found_by_robot}, auctions {len(record.awards)}")
 
 
+REPORTS = ExperimentConfig().report_dir.parent  # reports/<structure> by default
+
+
 def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser = argparse.ArgumentParser(prog="experiment", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--structure", default="config/structures/paper_14.yaml", help="structure file")
-    parser.add_argument("--robots", type=int, default=2, help="assembly robots (default 2)")
-    parser.add_argument("--trials", type=int, default=14, help="trials with faults (default 14)")
-    parser.add_argument("--removals", type=int, default=22, help="tiles removed over all trials (default 22)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the whole experiment (default 1)")
+    defaults, network_defaults = ExperimentConfig(), NetworkSettings()
+    parser.add_argument("--structure", default=str(defaults.structure_file), help="structure file")
+    parser.add_argument("--robots", type=int, default=defaults.robots,
+                        help=f"assembly robots (default {defaults.robots})")
+    parser.add_argument("--trials", type=int, default=defaults.trials,
+                        help=f"trials with faults (default {defaults.trials})")
+    parser.add_argument("--removals", type=int, default=defaults.removals,
+                        help=f"tiles removed over all trials (default {defaults.removals})")
+    parser.add_argument("--seed", type=int, default=defaults.seed,
+                        help=f"seed of the whole experiment (default {defaults.seed})")
     parser.add_argument("--real-time-factor", type=float, default=None,
-                        help=f"simulated / wall time (default 20; {DEFAULT_NETNS_TIME_FACTOR:g} with --hosts netns)")
-    parser.add_argument("--drop-probability", type=float, default=0.0, help="chance a tile slips when placed")
-    parser.add_argument("--report", default=None, help="report folder (default reports/<structure>)")
-    parser.add_argument("--config", default="config", help="folder of the nodes' parameter files")
+                        help=f"simulated / wall time (default {defaults.real_time_factor:g}; "
+                        f"{DEFAULT_NETNS_TIME_FACTOR:g} with --hosts netns)")
+    parser.add_argument("--drop-probability", type=float, default=defaults.drop_probability,
+                        help="chance a tile slips when placed")
+    parser.add_argument("--report", default=None, help=f"report folder (default {REPORTS}/<structure>)")
+    parser.add_argument("--config", default=str(defaults.config_dir), help="folder of the nodes' parameter files")
     parser.add_argument("--no-baseline", action="store_true", help="skip the trial without faults")
-    parser.add_argument("--kill-robot", default="", help="kill this robot's process after a few placements")
-    parser.add_argument("--silent-robot", default="", help="this robot never bids (robustness check)")
+    parser.add_argument("--kill-robot", default=defaults.kill_robot,
+                        help="kill this robot's process after a few placements")
+    parser.add_argument("--silent-robot", default=defaults.silent_robot,
+                        help="this robot never bids (robustness check)")
     parser.add_argument("--no-inspection", action="store_true", help="build without the VI robot")
     parser.add_argument("--inspection-only", action="store_true",
                         help="only scans find missing tiles, as in the paper (robots do not report absent supports)")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
-    parser.add_argument("--hosts", choices=["netns"], default="",
+    parser.add_argument("--hosts", choices=["netns"], default=network_defaults.hosts,
                         help="netns: every robot, the base station and the world on a host of its own (needs root)")
-    parser.add_argument("--link-loss", type=float, default=0.0, metavar="PCT",
+    parser.add_argument("--link-loss", type=float, default=network_defaults.loss_percent, metavar="PCT",
                         help="robots' links drop PCT%% of frames")
-    parser.add_argument("--link-rate", type=float, default=None, metavar="MBIT", help="robots' links carry MBIT Mbit/s")
-    parser.add_argument("--link-delay", type=float, default=0.0, metavar="MS", help="robots' links delay frames MS ms")
+    parser.add_argument("--link-rate", type=float, default=network_defaults.rate_mbit, metavar="MBIT",
+                        help="robots' links carry MBIT Mbit/s")
+    parser.add_argument("--link-delay", type=float, default=network_defaults.delay_ms, metavar="MS",
+                        help="robots' links delay frames MS ms")
     parser.add_argument("--link-outage", action="append", default=[], metavar="ROBOT:AT:SECONDS",
                         help="cut ROBOT's link at AT s of simulated time for SECONDS (repeatable)")
     args = parser.parse_args(argv)
     structure = Path(args.structure)
-    time_factor = args.real_time_factor or (DEFAULT_NETNS_TIME_FACTOR if args.hosts else 20.0)
+    time_factor = args.real_time_factor or (DEFAULT_NETNS_TIME_FACTOR if args.hosts else defaults.real_time_factor)
     if args.robots < 1 or args.trials < 0 or args.removals < 0 or time_factor <= 0:
         parser.error("--robots must be >= 1, --trials and --removals >= 0, --real-time-factor > 0")
     if not Path(args.config).is_dir():
@@ -326,7 +340,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     return ExperimentConfig(
         structure_file=structure.resolve(), robots=args.robots, trials=args.trials, removals=args.removals,
         seed=args.seed, real_time_factor=time_factor, network=network,
-        report_dir=Path(args.report or f"reports/{structure.stem}"), config_dir=Path(args.config).resolve(),
+        report_dir=Path(args.report or f"{REPORTS}/{structure.stem}"), config_dir=Path(args.config).resolve(),
         baseline=not args.no_baseline, drop_probability=args.drop_probability, kill_robot=args.kill_robot,
         silent_robot=args.silent_robot, quiet=args.quiet, inspection=not args.no_inspection,
         robots_find_missing=not args.inspection_only,

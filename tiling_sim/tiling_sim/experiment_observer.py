@@ -11,7 +11,6 @@ import json
 
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Empty, String
 
 from tiling_assembly_msgs.msg import (
@@ -24,6 +23,8 @@ from tiling_assembly_msgs.msg import (
     TileState,
     TileStateArray,
 )
+from tiling_ros.qos import COORDINATION, DECISIONS, LATCHED, SIM_EVENTS
+from tiling_ros.stamps import stamp_to_seconds
 from tiling_sim.trial_record import (
     MISPLACED,
     MISSING,
@@ -39,16 +40,8 @@ from tiling_sim.trial_record import (
     WorldEvent,
 )
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-EVENTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-DECISIONS = QoSProfile(depth=200, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 STATE_NAMES = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING, TileState.OCCLUDED: OCCLUDED,
                TileState.MISPLACED: MISPLACED}
-
-
-def seconds(stamp) -> float:  # type: ignore[no-untyped-def]
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 class ExperimentObserver(Node):
@@ -63,8 +56,8 @@ class ExperimentObserver(Node):
         self.complete = False
         self.last_counts: dict[int, tuple[int, int, int]] = {}
         self.heard_once: set[tuple[str, int, str]] = set()  # (topic, auction id, robot)
-        self.start_pub = self.create_publisher(Empty, "/sim/start", EVENTS)
-        self.create_subscription(String, "/sim/events", self.on_event, EVENTS)
+        self.start_pub = self.create_publisher(Empty, "/sim/start", SIM_EVENTS)
+        self.create_subscription(String, "/sim/events", self.on_event, SIM_EVENTS)
         self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
         self.create_subscription(TileStateArray, "/tile_states", self.on_states, COORDINATION)
         self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
@@ -135,7 +128,7 @@ class ExperimentObserver(Node):
         counts = {s.tile_id: (s.scan_count, s.physical_support, s.see_through_support) for s in msg.states}
         fresh = frozenset(t for t, c in counts.items() if self.last_counts.get(t) != c)
         self.last_counts.update(counts)
-        self.record.scans.append(Scan(t=seconds(msg.header.stamp), states=states, fresh=fresh))
+        self.record.scans.append(Scan(t=stamp_to_seconds(msg.header.stamp), states=states, fresh=fresh))
         self.record.final_states.update(states)
 
     def first_time(self, topic: str, auction_id: int, robot: str = "") -> bool:
@@ -151,13 +144,13 @@ class ExperimentObserver(Node):
         if not self.first_time("announcements", msg.auction_id):
             return
         self.record.announcements.append(
-            Announcement(seconds(msg.header.stamp), msg.auction_id, msg.tile_id, msg.reason))
+            Announcement(stamp_to_seconds(msg.header.stamp), msg.auction_id, msg.tile_id, msg.reason))
 
     def on_award(self, msg: AuctionAward) -> None:
         if not self.first_time("awards", msg.auction_id):
             return
         self.record.awards.append(
-            AwardRecord(seconds(msg.header.stamp), msg.auction_id, msg.tile_id, msg.winner, msg.decision))
+            AwardRecord(stamp_to_seconds(msg.header.stamp), msg.auction_id, msg.tile_id, msg.winner, msg.decision))
 
     def on_bid(self, msg: AuctionBid) -> None:
         self.first_time("bids", msg.auction_id, msg.robot_name)
@@ -174,4 +167,4 @@ class ExperimentObserver(Node):
             self.heard_from.add(msg.robot_name)
         if self.start_sent:
             self.record.statuses.append(
-                StatusSample(seconds(msg.header.stamp), msg.robot_name, msg.state, msg.current_tile))
+                StatusSample(stamp_to_seconds(msg.header.stamp), msg.robot_name, msg.state, msg.current_tile))

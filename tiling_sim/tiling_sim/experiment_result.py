@@ -14,7 +14,9 @@ from tiling_sim.trial_record import TrialRecord
 
 @dataclass
 class ExperimentConfig:
-    structure_file: Path
+    """What `experiment` runs; its defaults are the command line's."""
+
+    structure_file: Path = Path("config/structures/paper_14.yaml")
     robots: int = 2
     trials: int = 14
     removals: int = 22

@@ -23,7 +23,8 @@ from typing import Any
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from tiling_ros.qos import REPLAY
 
 
 class _Parser(argparse.ArgumentParser):
@@ -83,10 +84,7 @@ def main(argv: list[str] | None = None) -> int:
                 except (ImportError, AttributeError, ValueError):
                     print(f"error: message type {c.msgtype} of {c.topic} is not installed", file=sys.stderr)
                     return 1
-                qos = QoSProfile(
-                    depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
-                )
-                publishers[c.topic] = node.create_publisher(kind, c.topic, qos)
+                publishers[c.topic] = node.create_publisher(kind, c.topic, REPLAY)
             deadline = time.monotonic() + args.wait_subscribers
             while args.wait_subscribers and time.monotonic() < deadline:
                 if all(p.get_subscription_count() > 0 for p in publishers.values()):

@@ -21,12 +21,15 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
 
 from tiling_assembly.polygons import convex_hull_2d
-from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import PlaceTile
 from tiling_assembly_msgs.msg import SimMotion
 from tiling_assembly_msgs.srv import SimPlace
+from tiling_ros.parameters import declare_settings
+from tiling_ros.qos import SIM_MOTION
+from tiling_ros.spinning import run_node
+from tiling_ros.stamps import stamp_from_seconds
 from tiling_sim import sim_interface as sim
 from tiling_sim.robot_motion import Point2, placement_phases
 from tiling_sim.sim_settings import RobotBodySettings
@@ -37,7 +40,9 @@ Result = PlaceTile.Result
 class SimRobot(Node):
     def __init__(self) -> None:
         super().__init__("sim_robot")
-        self.settings: RobotBodySettings = sim.declare_settings(self, RobotBodySettings)
+        self.settings: RobotBodySettings = declare_settings(
+            self, RobotBodySettings, dynamic_typing=True, build=RobotBodySettings.from_values
+        )
         self.name = self.get_namespace().strip("/")
         if self.name not in self.settings.team:
             raise ValueError(f"sim_robot runs in the namespace of one of {self.settings.team} "
@@ -50,7 +55,7 @@ class SimRobot(Node):
         self.busy = False
         self.time = sim.SimTime(self)
         self.world = sim.WorldClient(self, SimPlace, sim.PLACE)
-        self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, sim.MOTION_QOS)
+        self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, SIM_MOTION)
         # served from the start, so that the team's clients and this server have long discovered
         # each other when the first goal comes (a goal response sent before is lost for good)
         self.server = ActionServer(
@@ -133,7 +138,7 @@ class SimRobot(Node):
         view, with its errors, is the world's)."""
         pose = PoseStamped()
         pose.header.frame_id = "map"
-        pose.header.stamp = sim.stamp_of(at)
+        pose.header.stamp = stamp_from_seconds(at)
         pose.pose.position.x, pose.pose.position.y = self.position
         pose.pose.orientation.w = 1.0
         return pose

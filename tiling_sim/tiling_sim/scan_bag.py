@@ -12,7 +12,8 @@ replay_bag` read the result like a recording of the real robot:
 MCAP chunks are zstd-compressed (rosbag2's "storage" compression, which the MCAP reader of
 `ros2 bag` and `rosbags` both read): clouds full of NaN and millimetre depths shrink several-fold.
 What really was in the scene goes to `truth.json` next to the bag's files (rosbag2 ignores it).
-Self-contained: uses `rosbags` only, no ROS installation.
+Self-contained: uses `rosbags` only, no ROS installation (the cloud is laid out by
+`tiling_ros.point_clouds`, in rosbags' own message types).
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ from numpy.typing import NDArray
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from rosbags.typesys import Stores, get_typestore
+
+from tiling_ros.point_clouds import cloud_to_msg
 
 CLOUD_TOPIC = "/vi/camera/depth/points"
 POSE_TOPIC = "/vi/overhead_pose"
@@ -98,22 +101,9 @@ class ScanBagWriter:
     ) -> None:
         """An organized cloud (H, W, 3) float32 in the optical frame; `truth` goes to truth.json."""
         types = self.typestore.types
-        array = np.ascontiguousarray(cloud, dtype="<f4")
-        height, width = array.shape[:2]
-        fields = [
-            types["sensor_msgs/msg/PointField"](name=name, offset=4 * k, datatype=7, count=1)
-            for k, name in enumerate("xyz")
-        ]
-        msg = types["sensor_msgs/msg/PointCloud2"](
-            header=self._header(stamp_ns, frame_id),
-            height=height,
-            width=width,
-            fields=fields,
-            is_bigendian=False,
-            point_step=12,
-            row_step=12 * width,
-            data=array.reshape(-1).view(np.uint8),
-            is_dense=False,
+        msg = cloud_to_msg(
+            cloud, self._header(stamp_ns, frame_id),
+            cloud_type=types["sensor_msgs/msg/PointCloud2"], field_type=types["sensor_msgs/msg/PointField"],
         )
         data = self.typestore.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")
         self._writer.write(self._cloud_connection, stamp_ns, data)

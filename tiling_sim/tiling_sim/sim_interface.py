@@ -1,7 +1,8 @@
 """The simulator-internal interface between `sim_world` and the robots' simulated bodies, and what
-the three nodes share on the ROS side (declaring their settings, simulated time).
+the three nodes share on the ROS side (simulated time, the world's services).
 
-Real robots never use it; it stands for the physics the real robots would meet. Names and QoS:
+Real robots never use it; it stands for the physics the real robots would meet. Names and QoS (the
+profiles of `tiling_ros.qos`):
 
 | name | type | from -> to | QoS |
 |---|---|---|---|
@@ -23,13 +24,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 
+from tiling_ros.qos import CLOCK
+from tiling_ros.stamps import stamp_to_nanoseconds
 from tiling_sim.alarms import Alarms
 
 PLACE = "/sim/place"
@@ -39,49 +40,15 @@ SCAN_PROGRESS = "/sim/scan_progress"
 EVENTS = "/sim/events"
 START = "/sim/start"
 
-# SimTime wakes a body at the first tick at or after its alarm, so a body whose process stalls must
-# still get every tick, in order: a queue of 10 (0.2 s of wall time at clock_step 0.02) dropped the
-# ticks of a longer stall and woke it several simulated seconds late. Both ends keep 20 s of ticks.
-CLOCK_DEPTH = 1000
-CLOCK_OUT = QoSProfile(depth=CLOCK_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
-CLOCK_IN = QoSProfile(depth=CLOCK_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
-# kept for a world that joins late (its subscription matched after the first declarations): where a
-# base stands from when is absolute, so the world may hear it late, never lose it
-MOTION_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-SCAN_PROGRESS_QOS = QoSProfile(depth=20, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                               reliability=ReliabilityPolicy.RELIABLE)
 WORLD_PATIENCE = 30.0  # s of wall time a body waits for the world to answer before giving up
-EVENTS_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def declare_settings(node: Node, settings_class: Any) -> Any:
-    """Declare every field of `settings_class` (a `sim_settings` class) as a parameter of `node`, with
-    its description, and return the settings the parameters give (ValueError: one line)."""
-    defaults = settings_class()
-    values = {}
-    for name in settings_class.names():
-        descriptor = ParameterDescriptor(description=settings_class.description(name), dynamic_typing=True)
-        values[name] = node.declare_parameter(name, getattr(defaults, name), descriptor).value
-    return settings_class.from_values(values)  # run_node names the node
-
-
-def stamp_ns(stamp: Any) -> int:
-    return int(stamp.sec) * 10**9 + int(stamp.nanosec)
-
-
-def stamp_of(seconds: float) -> Any:
-    """A builtin_interfaces/Time `seconds` after zero."""
-    msg = ClockMsg().clock
-    nanoseconds = round(seconds * 1e9)
-    msg.sec, msg.nanosec = divmod(nanoseconds, 10**9)
-    return msg
 
 
 class SimTime:
     """Simulated time as `/clock` tells a body, and alarms on it.
 
-    Every tick is read, in order (reliable, a queue of `CLOCK_DEPTH`): an alarm wakes at the first tick at or
-    after its time, also when the body's process runs late, and its future holds that tick's time.
+    Every tick is read, in order (reliable, a queue of `tiling_ros.qos.CLOCK_DEPTH`): an alarm wakes at
+    the first tick at or after its time, also when the body's process runs late, and its future holds
+    that tick's time.
     A body that starts its next phase from that time, not from the latest tick it has heard of,
     keeps the timeline the world had when it was one process, however long messages take.
     """
@@ -90,10 +57,10 @@ class SimTime:
         self.now = 0.0  # s, the latest /clock
         self._alarms = Alarms()
         self._on_tick = on_tick
-        node.create_subscription(ClockMsg, "/clock", self._on_clock, CLOCK_IN)
+        node.create_subscription(ClockMsg, "/clock", self._on_clock, CLOCK)
 
     def _on_clock(self, msg: ClockMsg) -> None:
-        self.now = max(self.now, stamp_ns(msg.clock) * 1e-9)
+        self.now = max(self.now, stamp_to_nanoseconds(msg.clock) * 1e-9)
         for wake in self._alarms.due(self.now):
             wake()
         if self._on_tick is not None:

@@ -12,34 +12,29 @@ the others. What all of them must agree on (the structure, the team, where every
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 from tiling_assembly.structure import Structure
+from tiling_ros.parameters import setting
 from tiling_sim.robot_motion import MotionModel, Point2, start_positions
 
 VI_ROBOT = "vi"  # the VI robot's name: its namespace and the prefix of its topics
-
-
-def _setting(default: Any, description: str) -> Any:
-    if isinstance(default, list):
-        return field(default_factory=lambda: list(default), metadata={"description": description})
-    return field(default=default, metadata={"description": description})
 
 
 @dataclass(frozen=True)
 class SimLayout:
     """What every simulated part knows of the testbed: the structure, the team, where it starts."""
 
-    structure_file: str = _setting("", "Structure YAML being built (required).")
-    robot_names: list[str] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    structure_file: str = setting("", "Structure YAML being built (required).")
+    robot_names: list[str] = setting(  # noqa: RUF009 - a field() with a default_factory
         ["robot1", "robot2"], "Simulated assembly robots (their namespaces).")
-    robot_start_xy: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    robot_start_xy: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.0], "x1, y1, x2, y2, ... start positions of the robots in map (m); fewer than 2 numbers: "
         "spread on a circle around the structure.")
-    vi_start_pose: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    vi_start_pose: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.9, 0.0, math.pi], "x, y, yaw of the VI robot's base at the start.")
-    seed: int = _setting(1, "Seed of every random choice of the testbed (faults, localization errors, "
+    seed: int = setting(1, "Seed of every random choice of the testbed (faults, localization errors, "
                             "Kinect noise).")
 
     @classmethod
@@ -98,18 +93,18 @@ class SimLayout:
 class WorldSettings(SimLayout):
     """`sim_world`: the clock, the physical structure, faults, overhead localization."""
 
-    real_time_factor: float = _setting(
+    real_time_factor: float = setting(
         20.0, "How much faster than the wall clock simulated time runs (at the wall clock's pace while "
         "the scan the VI robot stopped for is judged: the inspection's real cost).")
-    clock_step: float = _setting(0.02, "s of wall-clock time between two /clock messages.")
-    wait_for_start: bool = _setting(False, "Hold simulated time at 0 until a message on /sim/start.")
-    removals: int = _setting(0, "Tiles to remove during the build.")
-    removal_window_start: float = _setting(40.0, "s of simulated time from which removals may happen.")
-    removal_window_end: float = _setting(200.0, "s of simulated time by which removals happen.")
-    drop_probability: float = _setting(0.0, "Chance that a tile slips from the gripper during a placement.")
-    overhead_position_error: float = _setting(0.05, "Largest overhead localization error, m.")
-    overhead_yaw_error_deg: float = _setting(10.0, "Largest overhead heading error, degrees.")
-    scan_hold_limit: float = _setting(
+    clock_step: float = setting(0.02, "s of wall-clock time between two /clock messages.")
+    wait_for_start: bool = setting(False, "Hold simulated time at 0 until a message on /sim/start.")
+    removals: int = setting(0, "Tiles to remove during the build.")
+    removal_window_start: float = setting(40.0, "s of simulated time from which removals may happen.")
+    removal_window_end: float = setting(200.0, "s of simulated time by which removals happen.")
+    drop_probability: float = setting(0.0, "Chance that a tile slips from the gripper during a placement.")
+    overhead_position_error: float = setting(0.05, "Largest overhead localization error, m.")
+    overhead_yaw_error_deg: float = setting(10.0, "Largest overhead heading error, degrees.")
+    scan_hold_limit: float = setting(
         30.0, "Longest the clock waits (s of wall time) for the VI robot's scan it was held for (stopped "
         "while rendered, at the wall clock's pace while judged) before running fast again: the VI body "
         "died or its messages were lost.")
@@ -131,9 +126,9 @@ class WorldSettings(SimLayout):
 class BodySettings(SimLayout):
     """What every simulated robot body knows: how its base moves, the size of an assembly robot."""
 
-    drive_speed: float = _setting(0.15, "Base speed, m/s.")
-    turn_speed: float = _setting(1.0, "Base turning speed, rad/s.")
-    robot_size: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    drive_speed: float = setting(0.15, "Base speed, m/s.")
+    turn_speed: float = setting(1.0, "Base turning speed, rad/s.")
+    robot_size: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.33, 0.33, 0.35], "Box standing for an assembly robot: x, y, z size (m).")
 
     def check(self, source: str) -> None:
@@ -148,14 +143,14 @@ class BodySettings(SimLayout):
 class RobotBodySettings(BodySettings):
     """`sim_robot`: one assembly robot's body (its place_tile phases and their durations)."""
 
-    locate_time: float = _setting(2.0, "s to find a tile with the laser at its cache.")
-    pick_time: float = _setting(6.0, "s to pick a tile.")
-    place_time: float = _setting(10.0, "s to place a tile.")
-    retreat_time: float = _setting(2.0, "s to back off after placing.")
-    approach_distance: float = _setting(
+    locate_time: float = setting(2.0, "s to find a tile with the laser at its cache.")
+    pick_time: float = setting(6.0, "s to pick a tile.")
+    place_time: float = setting(10.0, "s to place a tile.")
+    retreat_time: float = setting(2.0, "s to back off after placing.")
+    approach_distance: float = setting(
         0.25, "m from a tile's centre to where the base stops to place it (further out if the base would "
         "stand on the structure).")
-    base_clearance: float = _setting(0.03, "m an assembly robot's base keeps from every tile of the structure.")
+    base_clearance: float = setting(0.03, "m an assembly robot's base keeps from every tile of the structure.")
 
     def check(self, source: str) -> None:
         super().check(source)
@@ -177,20 +172,20 @@ class RobotBodySettings(BodySettings):
 class ViBodySettings(BodySettings):
     """`sim_vi`: the VI robot's body (its base and its Kinect)."""
 
-    scan_period: float = _setting(1.0, "s of simulated time between two Kinect scans while the VI robot stands.")
-    verdict_timeout: float = _setting(
+    scan_period: float = setting(1.0, "s of simulated time between two Kinect scans while the VI robot stands.")
+    verdict_timeout: float = setting(
         3.0, "The next scan waits for vi_node's verdict on the last one (/tile_states) or this many s of "
         "wall-clock time: the simulated camera streams what the inspection consumes.")
     # the same names as vi_node's: the runner gives both nodes config/vi_node.yaml
-    camera_xyz: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    camera_xyz: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.08, 0.0, 0.55], "Pose of camera_link in the VI robot's base_link: x, y, z (m).")
-    camera_rpy: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    camera_rpy: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.0, 0.45, 0.0], "Pose of camera_link in base_link: roll, pitch, yaw (rad).")
-    intrinsics: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    intrinsics: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [580.0, 580.0, 319.5, 239.5], "Kinect depth camera fx, fy, cx, cy (px).")
-    intrinsics_size: list[int] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    intrinsics_size: list[int] = setting(  # noqa: RUF009 - a field() with a default_factory
         [640, 480], "Kinect depth image width, height (px).")
-    robots_in_view: bool = _setting(True, "The assembly robots appear in the Kinect's view (as boxes).")
+    robots_in_view: bool = setting(True, "The assembly robots appear in the Kinect's view (as boxes).")
 
     def check(self, source: str) -> None:
         super().check(source)

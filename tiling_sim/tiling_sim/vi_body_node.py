@@ -19,12 +19,11 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-import numpy as np
 from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import PointCloud2, PointField
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Header
 
 from tiling_assembly.geometry import (
     quaternion_from_rotation,
@@ -32,29 +31,34 @@ from tiling_assembly.geometry import (
     rotation_from_rpy,
     rpy_from_rotation,
 )
-from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo
 from tiling_assembly_msgs.msg import SimMotion, SimScanProgress, TileStateArray
 from tiling_assembly_msgs.srv import SimSnapshot
+from tiling_ros.parameters import declare_settings
+from tiling_ros.point_clouds import cloud_to_msg
+from tiling_ros.qos import SIM_CAMERA, SIM_MOTION, SIM_SCAN_PROGRESS
+from tiling_ros.spinning import run_node
+from tiling_ros.stamps import stamp_from_seconds, stamp_to_nanoseconds
 from tiling_sim import sim_interface as sim
 from tiling_sim.kinect import ClutterBox, KinectScene, KinectSimulator, PinholeIntrinsics, camera_pose
 from tiling_sim.robot_motion import drive_time_to_pose
 from tiling_sim.scan_cycle import Frame, ScanCycle
 from tiling_sim.sim_settings import ViBodySettings
-from vi_node.point_cloud import cloud_bytes, cloud_fields
 
 # reliable: Fast DDS loses most fragmented 3.7 MB samples best effort, and the next frame waits for
 # the verdict on this one (vi_node's sensor_reliability auto follows)
-CAMERA = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+OPTICAL_FRAME = "camera_depth_optical_frame"  # the frame of the Kinect's clouds
 Pose2 = tuple[float, float, float]
 
 
 class SimVi(Node):
     def __init__(self) -> None:
         super().__init__("sim_vi")
-        self.settings: ViBodySettings = sim.declare_settings(self, ViBodySettings)
+        self.settings: ViBodySettings = declare_settings(
+            self, ViBodySettings, dynamic_typing=True, build=ViBodySettings.from_values
+        )
         s = self.settings
         self.name = self.get_namespace().strip("/")
         if not self.name:
@@ -71,9 +75,9 @@ class SimVi(Node):
         self.render_pool = ThreadPoolExecutor(max_workers=1)
         self.time = sim.SimTime(self, on_tick=self.tick)
         self.world = self.create_client(SimSnapshot, sim.SNAPSHOT)
-        self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, sim.MOTION_QOS)
-        self.progress_pub = self.create_publisher(SimScanProgress, sim.SCAN_PROGRESS, sim.SCAN_PROGRESS_QOS)
-        self.cloud_pub = self.create_publisher(PointCloud2, "camera/depth/points", CAMERA)
+        self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, SIM_MOTION)
+        self.progress_pub = self.create_publisher(SimScanProgress, sim.SCAN_PROGRESS, SIM_SCAN_PROGRESS)
+        self.cloud_pub = self.create_publisher(PointCloud2, "camera/depth/points", SIM_CAMERA)
         self.create_subscription(TileStateArray, "/tile_states", self.on_verdict, 10)
         # served from the start: the explorer's client and this server discover each other early (the
         # base needs no answer of the world: where it will stand is kept for the world, see MOTION_QOS)
@@ -109,7 +113,7 @@ class SimVi(Node):
         the world's)."""
         pose = PoseStamped()
         pose.header.frame_id = "map"
-        pose.header.stamp = sim.stamp_of(at)
+        pose.header.stamp = stamp_from_seconds(at)
         pose.pose.position.x, pose.pose.position.y = self.pose[0], self.pose[1]
         o = pose.pose.orientation
         o.x, o.y, o.z, o.w = quaternion_from_rotation(rotation_from_rpy(0.0, 0.0, self.pose[2]))
@@ -133,7 +137,7 @@ class SimVi(Node):
     def on_snapshot(self, frame: Frame, future: Any) -> None:
         snapshot: SimSnapshot.Response | None = future.result()
         with self.lock:
-            wanted = snapshot is not None and self.cycle.snapshot_arrived(frame, sim.stamp_ns(snapshot.stamp))
+            wanted = snapshot is not None and self.cycle.snapshot_arrived(frame, stamp_to_nanoseconds(snapshot.stamp))
         if wanted:
             self.render_pool.submit(self.render, frame, snapshot, self.pose)
 
@@ -145,7 +149,7 @@ class SimVi(Node):
                 return  # shut down while the frame was rendered
             with self.lock:
                 self.cycle.published(frame, time.monotonic())
-            self.cloud_pub.publish(cloud_msg(cloud, snapshot.stamp))
+            self.cloud_pub.publish(cloud_to_msg(cloud, Header(stamp=snapshot.stamp, frame_id=OPTICAL_FRAME)))
             self.progress(SimScanProgress.PUBLISHED, frame)
         except Exception as error:
             if self.context.ok():
@@ -163,7 +167,7 @@ class SimVi(Node):
     def on_verdict(self, msg: TileStateArray) -> None:
         """vi_node has judged a scan (states or the reason it has none): the camera may take the next."""
         with self.lock:
-            judged = self.cycle.judged(sim.stamp_ns(msg.header.stamp), time.monotonic())
+            judged = self.cycle.judged(stamp_to_nanoseconds(msg.header.stamp), time.monotonic())
         if judged is not None:
             frame, delay = judged
             self.progress(SimScanProgress.JUDGED, frame, wall_delay=delay, problem=msg.problem)
@@ -179,19 +183,8 @@ class SimVi(Node):
 
     def progress(self, stage: int, frame: Frame, wall_delay: float = 0.0, problem: str = "") -> None:
         """Tell the world how `frame` fares (a frame without a snapshot releases any hold)."""
-        self.progress_pub.publish(SimScanProgress(stage=stage, scan_stamp=sim.stamp_of(frame.stamp_ns * 1e-9),
+        self.progress_pub.publish(SimScanProgress(stage=stage, scan_stamp=stamp_from_seconds(frame.stamp_ns * 1e-9),
                                                   wall_delay=wall_delay, problem=problem))
-
-
-def cloud_msg(cloud: np.ndarray, stamp: Any) -> PointCloud2:
-    """An organized (H, W, 3) cloud as an x y z float32 PointCloud2 in the depth camera's optical frame."""
-    msg = PointCloud2(height=cloud.shape[0], width=cloud.shape[1], is_bigendian=False,
-                      point_step=12, row_step=12 * cloud.shape[1], is_dense=False)
-    msg.header.stamp = stamp
-    msg.header.frame_id = "camera_depth_optical_frame"
-    msg.fields = [PointField(name=n, offset=o, datatype=d, count=c) for n, o, d, c in cloud_fields()]
-    msg.data = cloud_bytes(cloud)
-    return msg
 
 
 def main(args: list[str] | None = None) -> int:

@@ -31,11 +31,14 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Empty, String
 
 from tiling_assembly.geometry import quaternion_from_rotation
-from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.msg import SimMotion, SimScanProgress
 from tiling_assembly_msgs.srv import SimPlace, SimSnapshot
+from tiling_ros.parameters import declare_settings
+from tiling_ros.qos import CLOCK, SIM_EVENTS, SIM_MOTION, SIM_SCAN_PROGRESS
+from tiling_ros.spinning import run_node
+from tiling_ros.stamps import stamp_from_seconds, stamp_to_nanoseconds
 from tiling_sim import sim_interface as sim
 from tiling_sim.faults import FaultInjector
 from tiling_sim.overhead_cameras import OverheadCameras, Pose2
@@ -56,7 +59,9 @@ OUTCOME_CODES = {
 class SimWorld(Node):
     def __init__(self) -> None:
         super().__init__("sim_world")
-        self.settings: WorldSettings = sim.declare_settings(self, WorldSettings)
+        self.settings: WorldSettings = declare_settings(
+            self, WorldSettings, dynamic_typing=True, build=WorldSettings.from_values
+        )
         s = self.settings
         structure = load_structure(s.structure_file)
         faults = FaultInjector.scheduled(s.seed, s.removals, (s.removal_window_start, s.removal_window_end),
@@ -72,15 +77,15 @@ class SimWorld(Node):
             self.clock.start(time.monotonic())
         self.hold = ScanHold(s.scan_hold_limit)
 
-        self.clock_pub = self.create_publisher(ClockMsg, "/clock", sim.CLOCK_OUT)
-        self.event_pub = self.create_publisher(String, sim.EVENTS, sim.EVENTS_QOS)
+        self.clock_pub = self.create_publisher(ClockMsg, "/clock", CLOCK)
+        self.event_pub = self.create_publisher(String, sim.EVENTS, SIM_EVENTS)
         self.overhead_pubs = {name: self.create_publisher(PoseStamped, f"/{name}/overhead_pose", 10)
                               for name in self.whereabouts.poses}
         self.create_service(SimPlace, sim.PLACE, self.on_place)
         self.create_service(SimSnapshot, sim.SNAPSHOT, self.on_snapshot)
-        self.create_subscription(SimMotion, sim.MOTION, self.on_motion, sim.MOTION_QOS)
-        self.create_subscription(SimScanProgress, sim.SCAN_PROGRESS, self.on_scan_progress, sim.SCAN_PROGRESS_QOS)
-        self.create_subscription(Empty, sim.START, self.on_start, sim.EVENTS_QOS)
+        self.create_subscription(SimMotion, sim.MOTION, self.on_motion, SIM_MOTION)
+        self.create_subscription(SimScanProgress, sim.SCAN_PROGRESS, self.on_scan_progress, SIM_SCAN_PROGRESS)
+        self.create_subscription(Empty, sim.START, self.on_start, SIM_EVENTS)
         self.create_timer(s.clock_step, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.event("started", robots=self.robots, structure=structure.name,
                    removal_times=[round(t, 1) for t in faults.removal_times])
@@ -105,7 +110,7 @@ class SimWorld(Node):
                                    "of wall time: running on without it")
         now = self.now()
         self.arrive(now)  # before anything a body could do at this time
-        self.clock_pub.publish(ClockMsg(clock=sim.stamp_of(now)))
+        self.clock_pub.publish(ClockMsg(clock=stamp_from_seconds(now)))
         removal = self.referee.remove_due(now)
         if removal is not None:
             self.get_logger().info(f"fault: tile {removal[1]['tile']} removed from the structure")
@@ -150,9 +155,9 @@ class SimWorld(Node):
     def on_snapshot(self, request: SimSnapshot.Request, response: SimSnapshot.Response) -> SimSnapshot.Response:
         now = self.now()
         self.arrive(now)
-        stamp = sim.stamp_of(now)
+        stamp = stamp_from_seconds(now)
         if request.hold_clock:
-            self.hold.hold(sim.stamp_ns(stamp), time.monotonic())
+            self.hold.hold(stamp_to_nanoseconds(stamp), time.monotonic())
         response.stamp = stamp
         response.present_tiles = sorted(self.referee.world.present)
         response.robots = [Point(x=pose[0], y=pose[1], z=0.0)
@@ -162,7 +167,7 @@ class SimWorld(Node):
         return response
 
     def on_scan_progress(self, msg: SimScanProgress) -> None:
-        stamp = sim.stamp_ns(msg.scan_stamp)
+        stamp = stamp_to_nanoseconds(msg.scan_stamp)
         self.now()  # the pace changes from this moment on
         if msg.stage == SimScanProgress.PUBLISHED:
             self.hold.published(stamp)

@@ -14,22 +14,24 @@ from __future__ import annotations
 import math
 import sys
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionClient
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tiling_assembly.geometry import quaternion_from_rotation, rotation_from_rpy
 from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.scan_freshness import RepeatFilter
-from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo
 from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, Structure, TileState, TileStateArray
+from tiling_ros.parameters import declare_settings, setting
+from tiling_ros.qos import COORDINATION, LATCHED, REPORTS
+from tiling_ros.spinning import run_node
+from tiling_ros.stamps import is_zero, stamp_to_nanoseconds, stamp_to_seconds
 from vi_node.camera_model import PinholeCamera
 from vi_node.evidence import EvidenceSettings
 from vi_node.exploration import (
@@ -41,49 +43,64 @@ from vi_node.exploration import (
     PriorityWeights,
     ring_viewpoints,
 )
+from vi_node.inspection_settings import InspectionSettings
 from vi_node.pose_prior import CameraMount, OverheadPose
 from vi_node.raycast import VirtualScene
 from vi_node.viewpoint import rank_viewpoints
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+# the camera and the evidence rules are vi_node's (the same names in config/vi_node.yaml)
+_CAMERA = InspectionSettings()
+_EVIDENCE = EvidenceSettings()
 STATES = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING, TileState.OCCLUDED: OCCLUDED}
+
+
+@dataclass(frozen=True)
+class ExplorerSettings:
+    """The parameters of vi_explorer (read from config/vi_node.yaml), with their defaults."""
+
+    structure_file: str = setting("", "Structure used until /structure arrives.")
+    camera_xyz: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        _CAMERA.camera_xyz, "camera_link in base_link: x, y, z (m).")
+    camera_rpy: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        _CAMERA.camera_rpy, "camera_link in base_link: roll, pitch, yaw (rad).")
+    intrinsics: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        _CAMERA.intrinsics, "Depth camera fx, fy, cx, cy (px).")
+    intrinsics_size: list[int] = setting(  # noqa: RUF009 - a field() with a default_factory
+        _CAMERA.intrinsics_size, "Image width, height the intrinsics are given for (px).")
+    max_incidence: float = setting(_EVIDENCE.max_incidence, "Steepest judged view (rad).")
+    min_observed_pixels: int = setting(_EVIDENCE.min_observed_pixels, "Judged pixels a tile needs to be resolved.")
+    min_range: float = setting(_CAMERA.min_range, "Nearest depth measured (m).")
+    max_range: float = setting(_CAMERA.max_range, "Farthest depth measured (m).")
+    viewpoint_radii: list[float] = setting([0.9, 1.2], "Rings of viewpoints (m).")  # noqa: RUF009
+    viewpoints_per_ring: int = setting(8, "Viewpoints on each ring.")
+    settle_time: float = setting(0.2, "s after arriving before a scan counts.")
+    scan_timeout: float = setting(
+        5.0, "s of wall-clock time to wait at a viewpoint for a scan's verdict (vi_node answers every scan, with "
+        "states or the reason there are none: this only covers a silent vi_node).")
+    travel_cost: float = setting(0.5, "Priority points one metre of driving costs.")
 
 
 class ExplorerNode(Node):
     def __init__(self) -> None:
         super().__init__("vi_explorer")
 
-        def declare(name: str, default: object, description: str) -> object:
-            return self.declare_parameter(name, default, ParameterDescriptor(description=description)).value
-
-        self.structure_file = str(declare("structure_file", "", "Structure used until /structure arrives."))
-        xyz = declare("camera_xyz", [0.08, 0.0, 0.55], "camera_link in base_link: x, y, z (m).")
-        rpy = declare("camera_rpy", [0.0, 0.45, 0.0], "camera_link in base_link: roll, pitch, yaw (rad).")
-        intrinsics = declare("intrinsics", [580.0, 580.0, 319.5, 239.5], "Depth camera fx, fy, cx, cy (px).")
-        size = declare("intrinsics_size", [640, 480], "Image width, height the intrinsics are given for (px).")
-        evidence = EvidenceSettings()
+        settings = self.settings = declare_settings(self, ExplorerSettings)
+        self.structure_file = str(settings.structure_file)
         self.evidence = EvidenceSettings(
-            max_incidence=float(declare("max_incidence", evidence.max_incidence, "Steepest judged view (rad).")),
-            min_observed_pixels=int(declare("min_observed_pixels", evidence.min_observed_pixels,
-                                            "Judged pixels a tile needs to be resolved.")),
+            max_incidence=float(settings.max_incidence), min_observed_pixels=int(settings.min_observed_pixels)
         )
-        self.range = (float(declare("min_range", 0.5, "Nearest depth measured (m).")),
-                      float(declare("max_range", 4.5, "Farthest depth measured (m).")))
-        self.radii = [float(r) for r in declare("viewpoint_radii", [0.9, 1.2], "Rings of viewpoints (m).")]
-        self.per_ring = int(declare("viewpoints_per_ring", 8, "Viewpoints on each ring."))
-        self.settle = float(declare("settle_time", 0.2, "s after arriving before a scan counts."))
-        self.scan_timeout = float(declare(
-            "scan_timeout", 5.0,
-            "s of wall-clock time to wait at a viewpoint for a scan's verdict (vi_node answers every scan, "
-            "with states or the reason there are none: this only covers a silent vi_node)."))
-        travel_cost = float(declare("travel_cost", 0.5, "Priority points one metre of driving costs."))
+        self.range = (float(settings.min_range), float(settings.max_range))
+        self.radii = [float(r) for r in settings.viewpoint_radii]
+        self.per_ring = int(settings.viewpoints_per_ring)
+        self.settle = float(settings.settle_time)
+        self.scan_timeout = float(settings.scan_timeout)
+        travel_cost = float(settings.travel_cost)
         if not self.radii or any(r <= 0 for r in self.radii) or self.per_ring < 1:
             raise ValueError("viewpoint_radii must be positive and viewpoints_per_ring at least 1")
-        self.mount = CameraMount(tuple(xyz), tuple(rpy))  # type: ignore[arg-type]
-        fx, fy, cx, cy = (float(v) for v in intrinsics)  # type: ignore[union-attr]
-        self.camera = PinholeCamera(fx, fy, cx, cy, int(size[0]), int(size[1]))  # type: ignore[index]
+        self.mount = CameraMount(tuple(settings.camera_xyz), tuple(settings.camera_rpy))  # type: ignore[arg-type]
+        fx, fy, cx, cy = (float(v) for v in settings.intrinsics)
+        size = settings.intrinsics_size
+        self.camera = PinholeCamera(fx, fy, cx, cy, int(size[0]), int(size[1]))
 
         self.exploration = Exploration(PriorityWeights(), travel_cost=travel_cost)
         self.structure = None
@@ -144,16 +161,16 @@ class ExplorerNode(Node):
             return
         if msg.outcome != PlacementReport.OUTCOME_PLACED:
             return
-        self.placed[msg.tile_id] = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        self.placed[msg.tile_id] = stamp_to_nanoseconds(msg.header.stamp)
         self.update_expected()
         self.exploration.placed(msg.tile_id, self.now())
 
     def on_announcement(self, msg: AuctionAnnouncement) -> None:
-        self.withdrawn[msg.tile_id] = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        self.withdrawn[msg.tile_id] = stamp_to_nanoseconds(msg.header.stamp)
         self.update_expected()
 
     def on_states(self, msg: TileStateArray) -> None:
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp = stamp_to_seconds(msg.header.stamp)
         seen = self.repeats.fresh_states(msg.states)
         self.exploration.judged({s.tile_id: STATES.get(s.state, UNKNOWN) for s in msg.states if s.tile_id in seen},
                                 stamp)
@@ -226,7 +243,7 @@ class ExplorerNode(Node):
         self.here = pose
         # the base's own time of arrival: this node may hear of it late, and scans count from then
         arrival = result.final_pose.header.stamp
-        self.arrived_at = arrival.sec + arrival.nanosec * 1e-9 if arrival.sec or arrival.nanosec else self.now()
+        self.arrived_at = self.now() if is_zero(arrival) else stamp_to_seconds(arrival)
         self.arrived_wall = time.monotonic()
 
 

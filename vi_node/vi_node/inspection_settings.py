@@ -9,12 +9,13 @@ equal). Lengths in m, angles in rad, times in s.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from tiling_ros.parameters import setting
 from vi_node.evidence import EvidenceSettings
 from vi_node.expected_returns import ReturnSettings
 from vi_node.misplacement import MisplacementSettings
@@ -27,145 +28,139 @@ ROBOTS = RobotMaskSettings()
 MISPLACEMENT = MisplacementSettings()
 
 
-def _setting(default: Any, description: str) -> Any:
-    if isinstance(default, list):
-        return field(default_factory=lambda: list(default), metadata={"description": description})
-    return field(default=default, metadata={"description": description})
-
-
 class SettingsError(ValueError):
     """A setting with a bad value; the message names it."""
 
 
 @dataclass(frozen=True)
 class InspectionSettings:
-    mode: str = _setting(
+    mode: str = setting(
         "default",
         "classification: 'default' (pixel evidence, fusion, misplacement) or 'paper' (section 2.2.3 rules)",
     )
-    structure_file: str = _setting(
+    structure_file: str = setting(
         "", "structure file used until /structure arrives (empty: wait for /structure)"
     )
-    expected_tiles: str = _setting(
+    expected_tiles: str = setting(
         "all", "S_a until placement reports arrive: 'all' or comma-separated tile ids"
     )
-    camera_xyz: list[float] = _setting([0.08, 0.0, 0.55], "camera_link position in base_link (m)")  # noqa: RUF009 - a field() with a default_factory
-    camera_rpy: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    camera_xyz: list[float] = setting([0.08, 0.0, 0.55], "camera_link position in base_link (m)")  # noqa: RUF009 - a field() with a default_factory
+    camera_rpy: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.0, 0.45, 0.0], "camera_link roll, pitch, yaw in base_link (rad, REP 103)"
     )
-    intrinsics: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    intrinsics: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [580.0, 580.0, 319.5, 239.5], "depth camera fx, fy, cx, cy (px) at intrinsics_size"
     )
-    intrinsics_size: list[int] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    intrinsics_size: list[int] = setting(  # noqa: RUF009 - a field() with a default_factory
         [640, 480], "image width, height (px) the intrinsics are given for; other resolutions are scaled"
     )
-    min_range: float = _setting(RETURNS.min_range, "nearest depth the camera measures (m)")
-    max_range: float = _setting(RETURNS.max_range, "farthest depth the camera measures (m)")
-    projector_offset: float = _setting(
+    min_range: float = setting(RETURNS.min_range, "nearest depth the camera measures (m)")
+    max_range: float = setting(RETURNS.max_range, "farthest depth the camera measures (m)")
+    projector_offset: float = setting(
         RETURNS.projector_offset, "default: IR projector along the depth camera's x axis (m, + right)"
     )
-    sure_incidence: float = _setting(
+    sure_incidence: float = setting(
         RETURNS.sure_incidence, "default: the camera surely returns from faces seen less obliquely (rad) ..."
     )
-    blank_incidence: float = _setting(
+    blank_incidence: float = setting(
         RETURNS.blank_incidence, "default: ... and surely not from faces seen more obliquely (rad)"
     )
-    sensor_reliability: str = _setting(
+    sensor_reliability: str = setting(
         "auto",
         "clouds and overhead poses read 'reliable', 'best_effort' or 'auto' "
         "(reliable when every publisher offers it)",
     )
-    pose_tolerance: float = _setting(0.1, "largest time between a scan and the overhead pose used for it (s)")
-    pose_near_enough: float = _setting(
+    pose_tolerance: float = setting(0.1, "largest time between a scan and the overhead pose used for it (s)")
+    pose_near_enough: float = setting(
         0.02, "an overhead pose this near the scan's time is used at once, without waiting for a nearer one (s)"
     )
-    other_robots: str = _setting(
+    other_robots: str = setting(
         "", "default: robots whose overhead_pose to follow, comma-separated (empty: every one that appears)"
     )
-    robot_pose_tolerance: float = _setting(
+    robot_pose_tolerance: float = setting(
         0.5, "default: largest time between a scan and another robot's overhead pose used for it (s)"
     )
-    floor_stride: int = _setting(6, "floor fit uses every n-th row and column of the cloud")
-    floor_clearance: float = _setting(0.01, "points lower than this above the floor are floor (m)")
-    box_margin: float = _setting(0.03, "candidates lie within this of S_a's bounding box (m)")
-    coarse_search: bool = _setting(
+    floor_stride: int = setting(6, "floor fit uses every n-th row and column of the cloud")
+    floor_clearance: float = setting(0.01, "points lower than this above the floor are floor (m)")
+    box_margin: float = setting(0.03, "candidates lie within this of S_a's bounding box (m)")
+    coarse_search: bool = setting(
         True, "search x, y, yaw before ICP (the overhead errors are too large for ICP alone)"
     )
-    coarse_yaw_range: float = _setting(0.21, "coarse search +- this about the overhead yaw (rad)")
-    coarse_shift_range: float = _setting(0.10, "coarse search +- this in x and y (m)")
-    icp_max_iterations: int = _setting(10, "ICP iterations at most (the paper: 10)")
-    alignment_hypotheses: int = _setting(
+    coarse_yaw_range: float = setting(0.21, "coarse search +- this about the overhead yaw (rad)")
+    coarse_shift_range: float = setting(0.10, "coarse search +- this in x and y (m)")
+    icp_max_iterations: int = setting(10, "ICP iterations at most (the paper: 10)")
+    alignment_hypotheses: int = setting(
         3, "default: best x/y/yaw hypotheses of the coarse search refined before the best fit is kept ..."
     )
-    ambiguity: float = _setting(
+    ambiguity: float = setting(
         0.95, "default: ... unless another fit, 3 cm or 2 deg away, puts this share as many points on S_a"
     )
-    min_fit_points: int = _setting(
+    min_fit_points: int = setting(
         25, "default: the best fit must put this many of its (at most icp_max_points) points on S_a"
     )
-    min_alignment_points: int = _setting(60, "a scan with fewer aligned candidates is not classified")
-    min_alignment_inliers: float = _setting(0.6, "fraction of candidates that must lie on S_a after ICP")
-    min_agreement: float = _setting(0.35, "a scan agreeing with less of what S_a predicts is not classified")
-    max_pose_correction: float = _setting(
+    min_alignment_points: int = setting(60, "a scan with fewer aligned candidates is not classified")
+    min_alignment_inliers: float = setting(0.6, "fraction of candidates that must lie on S_a after ICP")
+    min_agreement: float = setting(0.35, "a scan agreeing with less of what S_a predicts is not classified")
+    max_pose_correction: float = setting(
         0.09, "largest believable correction of the overhead camera position (m): 5 cm + lever arms"
     )
-    max_yaw_correction: float = _setting(0.35, "largest believable correction of the overhead yaw (rad)")
-    min_support: int = _setting(100, "paper: support below this many points counts as 0")
-    ratio_threshold: float = _setting(0.7, "paper: missing when min(p/v, v/p) <= this")
-    support_distance: float = _setting(
+    max_yaw_correction: float = setting(0.35, "largest believable correction of the overhead yaw (rad)")
+    min_support: int = setting(100, "paper: support below this many points counts as 0")
+    ratio_threshold: float = setting(0.7, "paper: missing when min(p/v, v/p) <= this")
+    support_distance: float = setting(
         0.015, "paper: a candidate supports the tile it projects onto within this (m)"
     )
-    icp_max_points: int = _setting(
+    icp_max_points: int = setting(
         1500, "default: ICP on at most this many candidates (paper mode: all of them)"
     )
-    depth_sigmas: float = _setting(
+    depth_sigmas: float = setting(
         EVIDENCE.depth_sigmas, "default: measured and virtual depth agree within this many noise sigmas ..."
     )
-    depth_margin: float = _setting(
+    depth_margin: float = setting(
         EVIDENCE.depth_margin, "default: ... plus this (m, model and pose error), more on oblique faces"
     )
-    max_incidence: float = _setting(
+    max_incidence: float = setting(
         EVIDENCE.max_incidence, "default: pixels seeing a face more obliquely are not judged (rad)"
     )
-    min_observed_pixels: int = _setting(
+    min_observed_pixels: int = setting(
         EVIDENCE.min_observed_pixels, "default: a tile needs this many decisive pixels ..."
     )
-    min_observed_fraction: float = _setting(
+    min_observed_fraction: float = setting(
         EVIDENCE.min_observed_fraction, "default: ... and this share of the pixels it should fill"
     )
-    present_fraction: float = _setting(
+    present_fraction: float = setting(
         EVIDENCE.present_fraction, "default: present when this share of the decisive pixels agree ..."
     )
-    present_share: float = _setting(
+    present_share: float = setting(
         EVIDENCE.present_share, "default: ... and they are this share of all pixels that saw its place"
     )
-    missing_fraction: float = _setting(
+    missing_fraction: float = setting(
         EVIDENCE.missing_fraction, "default: missing when this share of the decisive pixels are against it"
     )
-    robot_size: list[float] = _setting(  # noqa: RUF009 - a field() with a default_factory
+    robot_size: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         list(ROBOTS.size), "default: other robots' box, x and y along the base and height (m)"
     )
-    robot_position_error: float = _setting(
+    robot_position_error: float = setting(
         ROBOTS.position_error, "default: overhead localization error of the other robots (m) ..."
     )
-    robot_yaw_error: float = _setting(ROBOTS.yaw_error, "default: ... and of their heading (rad)")
-    robot_surface_gap: float = _setting(
+    robot_yaw_error: float = setting(ROBOTS.yaw_error, "default: ... and of their heading (rad)")
+    robot_surface_gap: float = setting(
         0.02, "default: points inside a robot's box but this close to S_a's surfaces (m) are kept ..."
     )
-    robot_face_reach: float = _setting(
+    robot_face_reach: float = setting(
         0.03, "default: ... and judged, unless a point of the robot (off S_a's surfaces) lies this close (m)"
     )
-    tall_margin: float = _setting(
+    tall_margin: float = setting(
         ROBOTS.tall_margin, "default: points this far above the structure's top belong to something else (m)"
     )
-    fuse_scans: bool = _setting(
+    fuse_scans: bool = setting(
         True, "publish states fused over the scans of the same S_a (default mode: evidence)"
     )
-    misplacement_shift: float = _setting(
+    misplacement_shift: float = setting(
         MISPLACEMENT.shift, "default: flag a tile whose points say it moved this far (m) ..."
     )
-    misplacement_yaw: float = _setting(MISPLACEMENT.turn, "default: ... or turned this much (rad)")
-    misplacement_points: int = _setting(3000, "default: judge placement on at most this many candidates")
+    misplacement_yaw: float = setting(MISPLACEMENT.turn, "default: ... or turned this much (rad)")
+    misplacement_points: int = setting(3000, "default: judge placement on at most this many candidates")
 
     def evidence(self) -> EvidenceSettings:
         """The settings of the per-pixel evidence (`evidence`, `expected_returns`)."""

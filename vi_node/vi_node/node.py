@@ -26,19 +26,17 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tiling_assembly.geometry import PlacedTile, quaternion_from_rotation
 from tiling_assembly.messages import structure_from_msg
-from tiling_assembly.spinning import run_node
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
@@ -49,12 +47,16 @@ from tiling_assembly_msgs.msg import (
     TileState,
     TileStateArray,
 )
+from tiling_ros.parameters import declare_settings
+from tiling_ros.point_clouds import CloudError, cloud_from_msg
+from tiling_ros.qos import LATCHED, OTHER_ROBOT_POSES, sensor_stream
+from tiling_ros.spinning import run_node
+from tiling_ros.stamps import stamp_to_nanoseconds
 from vi_node.classify import TileState as State
 from vi_node.fusion import TileFusion, fuse_scan
 from vi_node.inspection_settings import InspectionSettings, SettingsError, parse_tile_ids
 from vi_node.misplacement import moved_tile
 from vi_node.pipeline import InspectionPipeline, InspectionStoppedError
-from vi_node.point_cloud import CloudError, cloud_from_msg
 from vi_node.pose_matching import PoseBuffer, TeamPoses
 from vi_node.pose_prior import OverheadPose
 from vi_node.scan_result import ScanResult
@@ -74,10 +76,6 @@ MEASURED_COLOUR = (0.95, 0.45, 0.0, 0.35)  # where a misplaced tile really is
 
 class StartupError(RuntimeError):
     """A bad parameter or file at start-up: one line, then exit non-zero."""
-
-
-def _stamp_ns(header: Any) -> int:
-    return int(header.stamp.sec) * 10**9 + int(header.stamp.nanosec)
 
 
 class ViNode(Node):
@@ -118,10 +116,7 @@ class ViNode(Node):
         self.scan_group, self.state_group = scans, state
         self.sensor_subscriptions: dict[str, tuple[Any, ReliabilityPolicy]] = {}
         self._match_sensor_publishers()
-        latched = QoSProfile(
-            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
-        )
-        self.create_subscription(Structure, "/structure", self._on_structure, latched, callback_group=state)
+        self.create_subscription(Structure, "/structure", self._on_structure, LATCHED, callback_group=state)
         self.create_subscription(
             PlacementReport, "/placement_reports", self._on_report, 100, callback_group=state
         )
@@ -145,15 +140,11 @@ class ViNode(Node):
 
     # -- parameters -------------------------------------------------------------------------------
     def _declare_settings(self) -> InspectionSettings:
-        defaults = InspectionSettings()
-        values: dict[str, Any] = {}
-        for name in InspectionSettings.names():
-            descriptor = ParameterDescriptor(
-                description=InspectionSettings.description(name), dynamic_typing=True
-            )
-            values[name] = self.declare_parameter(name, getattr(defaults, name), descriptor).value
         try:
-            return defaults.with_values(values, "vi_node")
+            return declare_settings(
+                self, InspectionSettings, dynamic_typing=True,
+                build=lambda values: InspectionSettings().with_values(dict(values), "vi_node"),
+            )
         except SettingsError as error:
             raise StartupError(str(error)) from None
 
@@ -208,7 +199,7 @@ class ViNode(Node):
         self.get_logger().info(f"structure '{structure.name}' with {len(structure)} tiles")
 
     def _on_report(self, msg: PlacementReport) -> None:
-        stamp, tile_id = _stamp_ns(msg.header), int(msg.tile_id)
+        stamp, tile_id = stamp_to_nanoseconds(msg.header.stamp), int(msg.tile_id)
         with self.news_lock:
             self.reports_seen = True
             if msg.outcome == PlacementReport.OUTCOME_PLACED:
@@ -221,7 +212,7 @@ class ViNode(Node):
     def _on_announcement(self, msg: AuctionAnnouncement) -> None:
         tile_id = int(msg.tile_id)
         with self.news_lock:
-            self.withdrawn[tile_id] = max(_stamp_ns(msg.header), self.placed.get(tile_id, -1))
+            self.withdrawn[tile_id] = max(stamp_to_nanoseconds(msg.header.stamp), self.placed.get(tile_id, -1))
             self.expected_changed = True
 
     # -- scans ------------------------------------------------------------------------------------
@@ -253,7 +244,7 @@ class ViNode(Node):
                 continue
             if current is not None:
                 self.destroy_subscription(current[0])
-            qos = QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST, reliability=wanted)
+            qos = sensor_stream(depth, wanted)
             # no QoS event handlers: rclpy's executor fails on the handler of a subscription destroyed
             # while it builds its wait set ("destruction was requested"), and this one is replaced
             subscription = self.create_subscription(
@@ -273,21 +264,21 @@ class ViNode(Node):
                 for topic, _ in self.get_topic_names_and_types()
                 if topic.endswith("/overhead_pose") and topic.count("/") == 2 and topic != own
             ]
-        qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
         for name in names:
             if name not in self.robot_subscriptions:
                 self.robot_subscriptions[name] = self.create_subscription(
                     PoseStamped,
                     f"/{name}/overhead_pose",
                     lambda msg, name=name: self._on_robot_pose(name, msg),
-                    qos,
+                    OTHER_ROBOT_POSES,
                     callback_group=self.state_group,
                 )
 
     def _on_robot_pose(self, name: str, msg: PoseStamped) -> None:
         p, q = msg.pose.position, msg.pose.orientation
         try:
-            self.team.add(name, _stamp_ns(msg.header), OverheadPose.from_quaternion(p.x, p.y, q.x, q.y, q.z, q.w))
+            pose = OverheadPose.from_quaternion(p.x, p.y, q.x, q.y, q.z, q.w)
+            self.team.add(name, stamp_to_nanoseconds(msg.header.stamp), pose)
         except ValueError:
             self._diagnose(DiagnosticStatus.WARN, f"ignored an overhead pose of {name} with a zero quaternion")
 
@@ -298,7 +289,7 @@ class ViNode(Node):
         except ValueError:
             self._diagnose(DiagnosticStatus.WARN, "ignored an overhead pose with a zero quaternion")
             return
-        self.poses.add(_stamp_ns(msg.header), pose)
+        self.poses.add(stamp_to_nanoseconds(msg.header.stamp), pose)
         self._wake_inspection()
 
     def _on_cloud(self, msg: PointCloud2) -> None:
@@ -343,7 +334,7 @@ class ViNode(Node):
             msg, waited = self.pending, time.monotonic() - self.pending_since
         if msg is None:
             return
-        stamp = _stamp_ns(msg.header)
+        stamp = stamp_to_nanoseconds(msg.header.stamp)
         match = self.poses.nearest(stamp, int(self.settings.pose_tolerance * 1e9))
         latest = self.poses.latest_stamp
         near_enough = match is not None and match[1] <= int(self.settings.pose_near_enough * 1e9)
