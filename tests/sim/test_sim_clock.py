@@ -30,3 +30,12 @@ def test_a_wall_clock_going_backwards_costs_nothing() -> None:
     clock.start(5.0)
     assert clock.advance(4.0) == 0.0
     assert clock.advance(4.5) == pytest.approx(10.0)
+
+
+def test_a_ceiling_stops_the_clock_there_and_never_turns_it_back() -> None:
+    clock = SimClock(factor=20.0)
+    clock.start(0.0)
+    assert clock.advance(1.0, ceiling=12.5) == pytest.approx(12.5)  # 20 s due, held at 12.5
+    assert clock.advance(2.0, ceiling=12.5) == pytest.approx(12.5)
+    assert clock.advance(3.0, ceiling=5.0) == pytest.approx(12.5)  # a promise heard late: no going back
+    assert clock.advance(3.1) == pytest.approx(14.5)  # released: fast from the moment it was released

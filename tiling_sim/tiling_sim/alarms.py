@@ -18,7 +18,7 @@ class Alarms:
         self._order = itertools.count()
 
     def set(self, at: float, wake: Callable[[], None]) -> None:
-        """Call `wake` once simulated time reaches `at` (s)."""
+        """Call `wake` once simulated time reaches `at` (in the unit `due` is given)."""
         heapq.heappush(self._heap, (at, next(self._order), wake))
 
     def due(self, now: float) -> list[Callable[[], None]]:

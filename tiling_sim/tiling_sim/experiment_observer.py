@@ -79,8 +79,10 @@ class ExperimentObserver(Node):
             waiting.append("the world's first event")
         if not self.record.plans:
             waiting.append("the plan")
-        # a robot that cannot reach its place_tile server yet would start late on simulated time
-        waiting += [f"{r}'s heartbeat with its driver ready" for r in self.robots if r not in self.heard_from]
+        # a robot that cannot reach its place_tile server yet, or has not taken up its task (the plan
+        # reaches robots at different moments), would start late on simulated time
+        waiting += [f"{r}'s heartbeat with its driver ready and its task taken up" for r in self.robots
+                    if r not in self.heard_from]
         return waiting
 
     def start(self) -> None:
@@ -163,7 +165,7 @@ class ExperimentObserver(Node):
         self.record.decisions.append(msg.data)
 
     def on_status(self, msg: RobotStatus) -> None:
-        if msg.driver_ready:
+        if msg.driver_ready and msg.state != RobotStatus.IDLE:
             self.heard_from.add(msg.robot_name)
         if self.start_sent:
             self.record.statuses.append(

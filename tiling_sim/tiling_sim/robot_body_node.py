@@ -29,7 +29,7 @@ from tiling_assembly_msgs.srv import SimPlace
 from tiling_ros.parameters import declare_settings
 from tiling_ros.qos import SIM_MOTION
 from tiling_ros.spinning import run_node
-from tiling_ros.stamps import stamp_from_seconds
+from tiling_ros.stamps import stamp_from_seconds, stamp_to_seconds
 from tiling_sim import sim_interface as sim
 from tiling_sim.robot_motion import Point2, placement_phases
 from tiling_sim.sim_settings import RobotBodySettings
@@ -80,6 +80,7 @@ class SimRobot(Node):
             result, start, end = _finish(handle.abort, Result.FAILED_HARDWARE, str(error)), 0.0, 0.0
         finally:
             self.busy = False
+            self.declare(self.time.now, busy=False)
         result.duration = end - start
         return result
 
@@ -88,11 +89,15 @@ class SimRobot(Node):
         times it started and ended.
 
         Each phase starts at the tick the last one ended at, not when the world's answer about it
-        came back: the round trip to the world costs no simulated time, as when it was one process.
+        came back, and the world's clock waits there until this body declares its next phase (busy)
+        or its end (idle): the round trips to the world and a body that runs late cost no simulated
+        time, as when it was one process (`body_hold`).
         """
         goal: PlaceTile.Goal = handle.request
-        start = at = self.time.now
         answer = await self.ask(SimPlace.Request.STARTING, goal.tile_id)
+        # the world's time, not this body's latest tick (which lags on a loaded host); the world's
+        # clock waits there until the first phase is declared
+        start = at = stamp_to_seconds(answer.stamp)
         if answer.outcome == SimPlace.Response.ALREADY_PRESENT:
             return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason), start, at
         if answer.outcome != SimPlace.Response.OK:
@@ -103,8 +108,7 @@ class SimRobot(Node):
         for phase in phases:
             handle.publish_feedback(PlaceTile.Feedback(phase=phase.phase, phase_progress=0.0,
                                                        robot_pose=self.pose_msg(at)))
-            self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=at + phase.duration, x=phase.end[0],
-                                              y=phase.end[1], yaw=0.0))
+            self.declare(at + phase.duration, busy=True, position=phase.end)
             at = await self.time.until(at + phase.duration)
             self.position = phase.end
             if handle.is_cancel_requested:
@@ -124,6 +128,12 @@ class SimRobot(Node):
         result = _finish(handle.succeed, Result.SUCCEEDED, "")
         result.placed_pose = goal.pose
         return result, start, at
+
+    def declare(self, arrive_at: float, busy: bool, position: tuple[float, float] | None = None) -> None:
+        """Tell the world where the base stands from `arrive_at` (s) on; `busy`: the world's clock waits
+        there until this body says what it does next (`body_hold`)."""
+        x, y = position or self.position
+        self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=x, y=y, yaw=0.0, busy=busy))
 
     async def ask(self, step: int, tile_id: int) -> SimPlace.Response:
         """The world's answer to one step of a placement (FAILED_HARDWARE's reason when none comes)."""

@@ -35,11 +35,13 @@ class SimClock:
     def running(self) -> bool:
         return self._last_wall is not None
 
-    def advance(self, wall: float, pace: Pace = Pace.FAST) -> float:
-        """Simulated time at wall clock `wall` (s), having run at `pace` since the last call."""
+    def advance(self, wall: float, pace: Pace = Pace.FAST, ceiling: float | None = None) -> float:
+        """Simulated time at wall clock `wall` (s), having run at `pace` since the last call, but not
+        past `ceiling` (s; a body the world waits for, see `body_hold`). Time never runs backwards."""
         if self._last_wall is not None:
             elapsed = max(0.0, wall - self._last_wall)
             rate = {Pace.FAST: self.factor, Pace.REAL: 1.0, Pace.STOPPED: 0.0}[pace]
-            self.now += elapsed * rate
+            ahead = self.now + elapsed * rate
+            self.now = ahead if ceiling is None else max(self.now, min(ahead, ceiling))
             self._last_wall = wall
         return self.now

@@ -55,13 +55,15 @@ class SimTime:
 
     def __init__(self, node: Node, on_tick: Callable[[], None] | None = None) -> None:
         self.now = 0.0  # s, the latest /clock
-        self._alarms = Alarms()
+        self._now_ns = 0
+        self._alarms = Alarms()  # on whole nanoseconds, as /clock tells them
         self._on_tick = on_tick
         node.create_subscription(ClockMsg, "/clock", self._on_clock, CLOCK)
 
     def _on_clock(self, msg: ClockMsg) -> None:
-        self.now = max(self.now, stamp_to_nanoseconds(msg.clock) * 1e-9)
-        for wake in self._alarms.due(self.now):
+        self._now_ns = max(self._now_ns, stamp_to_nanoseconds(msg.clock))
+        self.now = self._now_ns * 1e-9
+        for wake in self._alarms.due(self._now_ns):
             wake()
         if self._on_tick is not None:
             self._on_tick()
@@ -69,7 +71,8 @@ class SimTime:
     def until(self, at: float) -> Future:
         """A future done once simulated time reaches `at` (s); its result: the time it woke at."""
         future = Future()
-        self._alarms.set(at, lambda: future.done() or future.set_result(self.now))
+        # compared as /clock stamps: the world holds its clock at exactly this stamp (body_hold)
+        self._alarms.set(round(at * 1e9), lambda: future.done() or future.set_result(self.now))
         return future
 
 

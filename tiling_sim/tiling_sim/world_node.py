@@ -2,7 +2,8 @@
 
 What no robot carries on board, in one process (the world host under `--hosts netns`): the
 simulated `/clock` (running `real_time_factor` times faster than the wall clock, paced by the VI
-robot's scans, see `sim_clock` and `scan_hold`), the physical structure S_p, the faults (tiles
+robot's scans, see `sim_clock` and `scan_hold`, and held at the end of an assembly robot's phase until
+its body goes on, see `body_hold`), the physical structure S_p, the faults (tiles
 removed at random times, tiles slipping from a gripper), the overhead localization of every robot
 (`/<robot>/overhead_pose`, true pose plus the paper's errors of up to 5 cm and 10 degrees) and
 `/sim/events` (JSON lines for the experiment runner; `/sim/start` starts the clock).
@@ -40,6 +41,7 @@ from tiling_ros.qos import CLOCK, SIM_EVENTS, SIM_MOTION, SIM_SCAN_PROGRESS
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_seconds, stamp_to_nanoseconds
 from tiling_sim import sim_interface as sim
+from tiling_sim.body_hold import BodyHold
 from tiling_sim.faults import FaultInjector
 from tiling_sim.overhead_cameras import OverheadCameras, Pose2
 from tiling_sim.scan_hold import ScanHold
@@ -76,6 +78,7 @@ class SimWorld(Node):
         if not s.wait_for_start:
             self.clock.start(time.monotonic())
         self.hold = ScanHold(s.scan_hold_limit)
+        self.body_hold = BodyHold(s.body_hold_limit)
 
         self.clock_pub = self.create_publisher(ClockMsg, "/clock", CLOCK)
         self.event_pub = self.create_publisher(String, sim.EVENTS, SIM_EVENTS)
@@ -97,7 +100,7 @@ class SimWorld(Node):
     # --- simulated time -----------------------------------------------------------------------
     def now(self) -> float:
         """Simulated time up to this moment, at the pace it has run since the last tick."""
-        return self.clock.advance(time.monotonic(), self.hold.pace)
+        return self.clock.advance(time.monotonic(), self.hold.pace, ceiling=self.body_hold.ceiling())
 
     def on_start(self, _msg: Empty) -> None:
         if not self.clock.running:
@@ -108,6 +111,9 @@ class SimWorld(Node):
         if self.hold.lapsed(time.monotonic()):
             self.get_logger().warn(f"the VI robot's scan held the clock for over {self.settings.scan_hold_limit:g} s "
                                    "of wall time: running on without it")
+        for robot in self.body_hold.lapsed(self.clock.now, time.monotonic()):
+            self.get_logger().warn(f"{robot}'s body held the clock for over {self.settings.body_hold_limit:g} s of "
+                                   "wall time at the end of a phase: running on without it")
         now = self.now()
         self.arrive(now)  # before anything a body could do at this time
         self.clock_pub.publish(ClockMsg(clock=stamp_from_seconds(now)))
@@ -134,10 +140,17 @@ class SimWorld(Node):
                                    throttle_duration_sec=10.0)
             return
         self.whereabouts.expect(msg.robot, msg.arrive_at, (msg.x, msg.y, msg.yaw))
+        if msg.robot in self.robots:
+            self.now()  # the time up to this news ran under the old ceiling
+            if msg.busy:
+                self.body_hold.busy_until(msg.robot, msg.arrive_at)
+            else:
+                self.body_hold.idle(msg.robot)
         self.arrive(self.now())  # a phase that ends at once (or a late message) takes effect now
 
     def on_place(self, request: SimPlace.Request, response: SimPlace.Response) -> SimPlace.Response:
-        self.now()  # the events carry the time the step reached the world
+        now = self.now()  # the events carry the time the step reached the world
+        response.stamp = stamp_from_seconds(now)
         steps = {SimPlace.Request.STARTING: self.referee.starting, SimPlace.Request.PICKED: self.referee.picked,
                  SimPlace.Request.PLACING: self.referee.placing}
         step = steps.get(request.step)
@@ -145,6 +158,8 @@ class SimWorld(Node):
             response.outcome = SimPlace.Response.UNKNOWN_TILE
             response.reason = f"/sim/place: no step {request.step} for robot '{request.robot}'"
             return response
+        if request.step == SimPlace.Request.STARTING:  # the placement starts now: its phases count from here
+            self.body_hold.busy_until(request.robot, now)
         answer: StepAnswer = step(request.robot, int(request.tile_id))
         self.publish_events(answer.events)
         response.outcome = OUTCOME_CODES[answer.outcome.value]

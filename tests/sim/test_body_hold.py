@@ -1,0 +1,29 @@
+"""BodyHold: the world's clock waits at the end of a body's phase until the body says what it does next."""
+
+from tiling_sim.body_hold import BodyHold
+
+
+def test_the_earliest_phase_end_of_any_busy_body_is_the_ceiling() -> None:
+    hold = BodyHold(limit=5.0)
+    assert hold.ceiling() is None
+    hold.busy_until("robot1", 30.0)
+    hold.busy_until("robot2", 12.0)
+    assert hold.ceiling() == 12.0
+    hold.busy_until("robot2", 40.0)  # robot2 started its next phase
+    assert hold.ceiling() == 30.0
+    hold.idle("robot1")  # robot1's placement is over
+    assert hold.ceiling() == 40.0
+    hold.idle("robot2")
+    assert hold.ceiling() is None
+
+
+def test_a_hold_lapses_after_its_wall_time_limit_counted_from_when_it_was_reached() -> None:
+    hold = BodyHold(limit=5.0)
+    hold.busy_until("robot1", 30.0)
+    assert hold.lapsed(now=20.0, wall=100.0) == []  # not reached yet: nothing is held
+    assert hold.lapsed(now=30.0, wall=101.0) == []  # reached: the hold starts now
+    assert hold.lapsed(now=30.0, wall=106.0) == []
+    assert hold.lapsed(now=30.0, wall=106.5) == ["robot1"]
+    assert hold.ceiling() is None  # the clock runs on without robot1
+    hold.busy_until("robot1", 50.0)  # until its next news
+    assert hold.ceiling() == 50.0
