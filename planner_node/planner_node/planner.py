@@ -20,17 +20,19 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planner_node.assembly_graph import AssemblyGraph, build_graph
-from planner_node.initial_allocation import initial_allocation
+from planner_node.initial_allocation import InitialAllocation, initial_allocation
 from planner_node.layer_partition import layer_partition
 from planner_node.makespan_bound import MakespanBound, makespan_lower_bound
-from planner_node.node_trading import centroid_affinity, imbalance, trade_nodes, workloads
+from planner_node.node_trading import TradingResult, centroid_affinity, imbalance, trade_nodes, workloads
 from planner_node.schedule_improvement import GOOD_ENOUGH, improve_plan
 from planner_node.schedule_sim import SimulationResult, TeamSchedule, simulate_orders, team_schedule
 from planner_node.sequencing import Policy, sequence_tiles
@@ -40,6 +42,8 @@ from tiling_assembly.time_model import TimeModel
 DEFAULT_IMPROVE_TIME_LIMIT = 1.0  # s of local search in the default method
 PAPER_START_LIMIT = 2000  # tiles up to which the default method also tries the paper's partition
 ROBOT_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+
+IntArray = NDArray[np.int64]
 
 
 class Method(Enum):
@@ -167,6 +171,33 @@ def _package(
     )
 
 
+class _Stopwatch:
+    """Seconds spent in each planning stage, and in total since the stopwatch was made."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self.started = time.perf_counter()
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        tic = time.perf_counter()
+        yield
+        self.seconds[name] = time.perf_counter() - tic
+
+    def stop(self) -> dict[str, float]:
+        self.seconds["total"] = time.perf_counter() - self.started
+        return self.seconds
+
+
+@dataclass(frozen=True, eq=False)
+class _Sequenced:
+    """What every method produces: the orders, their simulation, and how they were made."""
+
+    orders: list[list[int]]
+    result: SimulationResult
+    stats: PlanStats  # without the stage times, which plan_assembly adds at the end
+
+
 def plan_assembly(
     structure: Structure,
     robot_names: Sequence[str],
@@ -183,72 +214,138 @@ def plan_assembly(
     """
     check_robot_names(robot_names)
     n_robots = len(robot_names)
-    seconds: dict[str, float] = {}
-    clock = time.perf_counter()
-    graph = build_graph(structure, time_model)
-    bound = makespan_lower_bound(graph, n_robots)
-    seconds["graph"] = time.perf_counter() - clock
+    stopwatch = _Stopwatch()
+    with stopwatch.stage("graph"):
+        graph = build_graph(structure, time_model)
+        bound = makespan_lower_bound(graph, n_robots)
+    if len(graph) == 0:
+        sequenced = _nothing_to_place(graph, n_robots=n_robots)
+    elif method is Method.ROUND_ROBIN:
+        sequenced = _round_robin_plan(graph, n_robots=n_robots, stopwatch=stopwatch)
+    else:
+        with stopwatch.stage("allocation"):
+            allocation = initial_allocation(graph, n_robots)
+        if method is Method.PAPER:
+            sequenced = _paper_plan(graph, allocation=allocation, n_robots=n_robots, stopwatch=stopwatch)
+        else:
+            sequenced = _improved_plan(
+                graph, allocation=allocation, n_robots=n_robots, good_enough=GOOD_ENOUGH * bound.strongest,
+                improve_time_limit=improve_time_limit, help_neighbours=help_neighbours, stopwatch=stopwatch,
+            )
+    stats = replace(sequenced.stats, seconds=stopwatch.stop())
+    return _package(structure, graph, robot_names, sequenced.orders, sequenced.result, method, bound, stats)
 
-    if len(graph) == 0:  # everything is placed already: every robot gets an empty task
-        orders = [[] for _ in robot_names]
-        seconds["total"] = time.perf_counter() - clock
-        return _package(structure, graph, robot_names, orders, simulate_orders(graph, orders), method,
-                        bound, PlanStats(seconds))
 
-    if method is Method.ROUND_ROBIN:
-        tic = time.perf_counter()
+def _nothing_to_place(graph: AssemblyGraph, *, n_robots: int) -> _Sequenced:
+    """Everything is placed already: every robot gets an empty task."""
+    orders: list[list[int]] = [[] for _ in range(n_robots)]
+    return _Sequenced(orders, simulate_orders(graph, orders), PlanStats())
+
+
+def _round_robin_plan(graph: AssemblyGraph, *, n_robots: int, stopwatch: _Stopwatch) -> _Sequenced:
+    """The baseline; its deal is final, so all three imbalances are the same."""
+    with stopwatch.stage("sequencing"):
         orders = round_robin_orders(graph, n_robots)
         result = simulate_orders(graph, orders)
-        seconds["sequencing"] = time.perf_counter() - tic
-        seconds["total"] = time.perf_counter() - clock
-        loads = [float(graph.cost[o].sum()) for o in orders]
-        stats = PlanStats(seconds, imbalance_initial=imbalance(loads), imbalance_traded=imbalance(loads),
-                          imbalance_final=imbalance(loads), policy="layer order")
-        return _package(structure, graph, robot_names, orders, result, method, bound, stats)
+    balance = imbalance([float(graph.cost[o].sum()) for o in orders])
+    stats = PlanStats(
+        imbalance_initial=balance, imbalance_traded=balance, imbalance_final=balance, policy="layer order"
+    )
+    return _Sequenced(orders, result, stats)
 
-    tic = time.perf_counter()
-    allocation = initial_allocation(graph, n_robots)
-    seconds["allocation"] = time.perf_counter() - tic
-    if method is Method.PAPER:
-        tic = time.perf_counter()
+
+def _paper_plan(
+    graph: AssemblyGraph, *, allocation: InitialAllocation, n_robots: int, stopwatch: _Stopwatch
+) -> _Sequenced:
+    """Section 2.1 as published: the Dijkstra regions, node trading, maximum-slack orders."""
+    with stopwatch.stage("trading"):
         traded = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
-        seconds["trading"] = time.perf_counter() - tic
-        tic = time.perf_counter()
-        owner = traded.owner
-        orders = sequence_tiles(graph, owner, n_robots, Policy.MAX_SLACK, allocation.distance).orders
+    with stopwatch.stage("sequencing"):
+        orders = sequence_tiles(graph, traded.owner, n_robots, Policy.MAX_SLACK, allocation.distance).orders
         result = simulate_orders(graph, orders)
-        seconds["sequencing"] = time.perf_counter() - tic
-        policy, moves, helped, start = Policy.MAX_SLACK.value, 0, 0, "dijkstra"
-        trading = {"dijkstra": traded}
-    else:
-        tic = time.perf_counter()
-        sliced = layer_partition(graph, n_robots)
-        trading = {"layers": trade_nodes(graph, sliced, n_robots, centroid_affinity(graph, sliced, n_robots))}
-        starts = {"layers": trading["layers"].owner, "layers-untraded": sliced}
-        if len(graph) <= PAPER_START_LIMIT:
-            trading["dijkstra"] = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
-            starts["dijkstra"] = trading["dijkstra"].owner
-        seconds["partitions"] = time.perf_counter() - tic
-        tic = time.perf_counter()
+    stats = _partition_stats(
+        graph,
+        trading={"dijkstra": traded},
+        start="dijkstra",
+        owner=traded.owner,
+        n_robots=n_robots,
+        policy=Policy.MAX_SLACK.value,
+        moves=0,
+        helped=0,
+    )
+    return _Sequenced(orders, result, stats)
+
+
+def _improved_plan(
+    graph: AssemblyGraph,
+    *,
+    allocation: InitialAllocation,
+    n_robots: int,
+    good_enough: float,
+    improve_time_limit: float,
+    help_neighbours: bool,
+    stopwatch: _Stopwatch,
+) -> _Sequenced:
+    """The default method: the best of several traded partitions, then local search."""
+    with stopwatch.stage("partitions"):
+        trading, starts = _start_partitions(graph, allocation=allocation, n_robots=n_robots)
+    with stopwatch.stage("improvement"):
         improved = improve_plan(
             graph,
             starts,
             n_robots,
             allocation.distance,
             improve_time_limit,
-            good_enough=GOOD_ENOUGH * bound.strongest,
+            good_enough=good_enough,
             help_neighbours=help_neighbours,
         )
-        owner, orders, result = improved.owner, improved.orders, improved.result
-        policy, moves, helped, start = improved.policy, improved.moves, improved.helped, improved.start
-        seconds["improvement"] = time.perf_counter() - tic
+    stats = _partition_stats(
+        graph,
+        trading=trading,
+        start=improved.start,
+        owner=improved.owner,
+        n_robots=n_robots,
+        policy=improved.policy,
+        moves=improved.moves,
+        helped=improved.helped,
+    )
+    return _Sequenced(improved.orders, improved.result, stats)
+
+
+def _start_partitions(
+    graph: AssemblyGraph, *, allocation: InitialAllocation, n_robots: int
+) -> tuple[dict[str, TradingResult], dict[str, IntArray]]:
+    """The partitions the default method starts from, by name, and the tradings behind them.
+
+    The order counts: among equally good plans `improve_plan` keeps the first. The paper's
+    partition is left out of big structures, where trading it costs more than it gains.
+    """
+    sliced = layer_partition(graph, n_robots)
+    trading = {"layers": trade_nodes(graph, sliced, n_robots, centroid_affinity(graph, sliced, n_robots))}
+    starts = {"layers": trading["layers"].owner, "layers-untraded": sliced}
+    if len(graph) <= PAPER_START_LIMIT:
+        trading["dijkstra"] = trade_nodes(graph, allocation.owner, n_robots, allocation.seed_distance)
+        starts["dijkstra"] = trading["dijkstra"].owner
+    return trading, starts
+
+
+def _partition_stats(
+    graph: AssemblyGraph,
+    *,
+    trading: Mapping[str, TradingResult],
+    start: str,
+    owner: IntArray,
+    n_robots: int,
+    policy: str,
+    moves: int,
+    helped: int,
+) -> PlanStats:
+    """How the plan grew from its start partition (`trading` holds the tradings of the starts)."""
     chosen = trading["dijkstra" if start == "dijkstra" else "layers"]
     trades, traded_imbalance = chosen.trades, chosen.imbalance_after
     if start == "layers-untraded":  # the layer slices did best as they were, without trading
         trades, traded_imbalance = 0, chosen.imbalance_before
-    seconds["total"] = time.perf_counter() - clock
-    stats = PlanStats(
-        seconds=seconds,
+    return PlanStats(
         trades=trades,
         improvement_moves=moves,
         imbalance_initial=chosen.imbalance_before,
@@ -258,7 +355,6 @@ def plan_assembly(
         helped=helped,
         partition=start,
     )
-    return _package(structure, graph, robot_names, orders, result, method, bound, stats)
 
 
 def replan_assembly(

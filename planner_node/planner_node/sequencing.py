@@ -32,9 +32,9 @@ partition then changes: the returned owners say who places what.
 
 from __future__ import annotations
 
-import heapq
 from dataclasses import dataclass
 from enum import Enum
+from heapq import heappop, heappush
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +43,7 @@ from planner_node.assembly_graph import AssemblyGraph
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
+Heap = list[tuple]  # a heapq heap of tuples whose last element is the tile or robot
 
 
 class Policy(Enum):
@@ -78,6 +79,12 @@ def region_adjacency(graph: AssemblyGraph, owner: IntArray, n_robots: int) -> li
     return touching
 
 
+def foreign_dependents(graph: AssemblyGraph, owner: list[int]) -> list[int]:
+    """How many of the tiles resting on each tile belong to another robot."""
+    dependents = graph.dependent_lists
+    return [sum(1 for d in dependents[t] if owner[d] != owner[t]) for t in range(len(graph))]
+
+
 def sequence_tiles(
     graph: AssemblyGraph,
     owner: IntArray,
@@ -87,135 +94,189 @@ def sequence_tiles(
     help_margin: float | None = None,
 ) -> Sequencing:
     """Every robot's tiles (graph indices) in placement order; see the module docstring."""
-    n = len(graph)
-    owner_list = [int(o) for o in owner]
-    pick = graph.pick.tolist()
-    travel = graph.travel.tolist()
-    place = graph.place.tolist()
-    cost = graph.cost.tolist()
-    layer = graph.layer.tolist()
-    near = (distance if distance is not None else np.zeros(n)).tolist()
-    supports = graph.support_lists
-    dependents = graph.dependent_lists
-    critical = policy is Policy.CRITICAL_PATH
-    helping = help_margin is not None and critical
-    margin = help_margin if help_margin is not None else 0.0
-    level = bottom_levels(graph) if critical else []
-    outside = [] if critical else [
-        sum(1 for d in dependents[t] if owner_list[d] != owner_list[t]) for t in range(n)
-    ]
-    touching = region_adjacency(graph, owner, n_robots) if helping else []
+    return TeamSequencer(graph, owner, n_robots, policy, distance, help_margin).run()
 
-    # per robot: `waiting` holds candidates keyed by when they could be placed without waiting
-    # (max slack: by the paper's key), `ready` (critical path) those placeable now, by priority.
-    # A tile taken by a helper stays in its old heaps and is skipped there (owner changed).
-    waiting: list[list[tuple]] = [[] for _ in range(n_robots)]
-    ready: list[list[tuple]] = [[] for _ in range(n_robots)]
-    supports_ready = [0.0] * n  # latest placement end of the tile's supports scheduled so far
-    unscheduled = [len(s) for s in supports]
-    done = [False] * n
-    remaining = [0.0] * n_robots  # cost of each robot's tiles not yet scheduled
-    for t in range(n):
-        remaining[owner_list[t]] += cost[t]
 
-    def offer(t: int) -> None:
-        r = owner_list[t]
-        if critical:
-            heapq.heappush(waiting[r], (supports_ready[t] - travel[t] - pick[t], t))
-        else:
-            slack_key = supports_ready[t] - travel[t] if supports[t] else float("-inf")
-            heapq.heappush(waiting[r], (slack_key, -outside[t], layer[t], near[t], t))
+class TeamSequencer:
+    """One list-scheduling pass over the whole team under the time model (section 2.1, step 3).
 
-    def valid(entry: tuple, r: int) -> bool:
+    Each robot keeps two heaps of candidate tiles: `waiting`, keyed by when the tile could be
+    placed without waiting (max slack: by the paper's key), and `ready` (critical path), the tiles
+    placeable now, by priority. A tile taken over by a helper stays in its old robot's heaps and
+    is skipped there because its owner changed; that is cheaper than deleting it from a heap.
+    """
+
+    def __init__(
+        self,
+        graph: AssemblyGraph,
+        owner: IntArray,
+        n_robots: int,
+        policy: Policy,
+        distance: FloatArray | None,
+        help_margin: float | None,
+    ) -> None:
+        n = len(graph)
+        self.n_robots = n_robots
+        self.owner = [int(o) for o in owner]
+        # plain lists: the pass reads single elements in tight loops, where numpy is slow
+        self.pick_time = graph.pick.tolist()
+        self.travel_time = graph.travel.tolist()  # one way, cache to tile
+        self.place_time = graph.place.tolist()
+        self.cost, self.layer = graph.cost.tolist(), graph.layer.tolist()
+        self.distance = (distance if distance is not None else np.zeros(n)).tolist()
+        self.supports, self.dependents = graph.support_lists, graph.dependent_lists
+        self.critical_path = policy is Policy.CRITICAL_PATH
+        self.helping = help_margin is not None and self.critical_path
+        self.help_margin = help_margin if help_margin is not None else 0.0
+        self.bottom_level = bottom_levels(graph) if self.critical_path else []
+        self.foreign_dependents = [] if self.critical_path else foreign_dependents(graph, self.owner)
+        self.neighbours = region_adjacency(graph, owner, n_robots) if self.helping else []
+
+        self.waiting: list[Heap] = [[] for _ in range(n_robots)]
+        self.ready: list[Heap] = [[] for _ in range(n_robots)]
+        self.supports_end = [0.0] * n  # latest placement end of the tile's supports scheduled so far
+        self.unscheduled_supports = [len(s) for s in self.supports]
+        self.scheduled = [False] * n
+        self.remaining_work = [0.0] * n_robots  # cost of each robot's tiles not yet scheduled
+        for t in range(n):
+            self.remaining_work[self.owner[t]] += self.cost[t]
+        self.orders: list[list[int]] = [[] for _ in range(n_robots)]
+        self.free_at = [0.0] * n_robots  # when each robot is back at its caches
+        self.idle = [False] * n_robots  # found nothing to do; woken when a tile of its becomes ready
+        self.robots_free: Heap = [(0.0, r) for r in range(n_robots)]  # (time, robot) events
+        self.helped = 0
+
+    def run(self) -> Sequencing:
+        """Schedule every tile, robot by robot as each comes back to its caches."""
+        self.offer_floor_tiles()
+        robots_free, idle = self.robots_free, self.idle
+        while robots_free:
+            now, robot = heappop(robots_free)
+            tile = self.choose(robot, now)
+            if tile is None:
+                idle[robot] = True
+                continue
+            end = self.place(tile, robot, now)
+            woken = self.release_dependents(tile, end)
+            if woken:
+                self.wake(woken, now)
+            heappush(robots_free, (self.free_at[robot], robot))
+        if sum(len(o) for o in self.orders) != len(self.owner):
+            raise RuntimeError("sequencing left tiles unscheduled: the support relation has a cycle")
+        return Sequencing(self.orders, np.array(self.owner, dtype=np.int64), self.helped)
+
+    def offer_floor_tiles(self) -> None:
+        """Tiles on the floor wait for nothing: every robot may start with one."""
+        for t, below in enumerate(self.supports):
+            if not below:
+                self.offer(t)
+
+    def offer(self, t: int) -> None:
+        """Make tile t, whose supports are all scheduled, a candidate of its robot."""
+        waiting = self.waiting[self.owner[t]]
+        if self.critical_path:
+            heappush(waiting, (self.supports_end[t] - self.travel_time[t] - self.pick_time[t], t))
+        else:  # floor tiles have nothing to wait for, so they go first
+            slack_key = self.supports_end[t] - self.travel_time[t] if self.supports[t] else float("-inf")
+            heappush(waiting, (slack_key, -self.foreign_dependents[t], self.layer[t], self.distance[t], t))
+
+    def is_current(self, entry: tuple, robot: int) -> bool:
+        """Whether a heap entry of `robot` still names one of its unscheduled tiles."""
         t = entry[-1]
-        return not done[t] and owner_list[t] == r
+        return not self.scheduled[t] and self.owner[t] == robot
 
-    def best_ready(r: int, now: float) -> int | None:
-        pending, best = waiting[r], ready[r]
-        while pending and (pending[0][0] <= now or not valid(pending[0], r)):
-            entry = heapq.heappop(pending)
-            if valid(entry, r):
-                t = entry[1]
-                heapq.heappush(best, (-level[t], layer[t], near[t], t))
-        while best and not valid(best[0], r):
-            heapq.heappop(best)
-        return best[0][-1] if best else None
+    def choose(self, robot: int, now: float) -> int | None:
+        """The robot's next tile by the policy, or None when it has nothing left to place."""
+        if not self.critical_path:
+            waiting = self.waiting[robot]
+            return heappop(waiting)[-1] if waiting else None
+        t = self.best_ready(robot, now)
+        if t is None and self.helping:
+            t = self.tile_to_help_with(robot, now)
+        if t is None:
+            t = self.least_wait(robot)
+        return t
 
-    def least_wait(r: int) -> int | None:
-        pending = waiting[r]
-        while pending and not valid(pending[0], r):
-            heapq.heappop(pending)
-        return pending[0][-1] if pending else None
+    def best_ready(self, robot: int, now: float) -> int | None:
+        """The robot's most urgent tile it can place at `now` without waiting."""
+        waiting, ready = self.waiting[robot], self.ready[robot]
+        scheduled, owner = self.scheduled, self.owner  # `is_current` inlined: this runs for every choice
+        while waiting and (waiting[0][0] <= now or scheduled[waiting[0][-1]] or owner[waiting[0][-1]] != robot):
+            t = heappop(waiting)[-1]
+            if not scheduled[t] and owner[t] == robot:
+                heappush(ready, (-self.bottom_level[t], self.layer[t], self.distance[t], t))
+        while ready and (scheduled[ready[0][-1]] or owner[ready[0][-1]] != robot):
+            heappop(ready)
+        return ready[0][-1] if ready else None
 
-    def help_someone(r: int, now: float) -> int | None:
-        mine = now + remaining[r]
+    def least_wait(self, robot: int) -> int | None:
+        """The robot's tile that could be placed soonest, when none can be placed now."""
+        waiting = self.waiting[robot]
+        while waiting and not self.is_current(waiting[0], robot):
+            heappop(waiting)
+        return waiting[0][-1] if waiting else None
+
+    def tile_to_help_with(self, robot: int, now: float) -> int | None:
+        """The most urgent tile another robot could place now, if that robot would still finish
+        after the helper; neighbouring robots first, so that the helper stays near its region."""
+        mine = now + self.remaining_work[robot]
+        others = set(range(self.n_robots)) - self.neighbours[robot] - {robot}
         best = None
-        for group in (touching[r], set(range(n_robots)) - touching[r] - {r}):
-            for v in group:
-                t = best_ready(v, now)
-                if t is None:
+        for group in (self.neighbours[robot], others):
+            for other in group:
+                t = self.best_ready(other, now)
+                if t is None or not self.worth_helping(t, mine=mine, helped=other, now=now):
                     continue
-                theirs = max(free[v], now) + remaining[v]
-                if mine + cost[t] > theirs - cost[t] + margin * cost[t]:
-                    continue
-                if best is None or level[t] > level[best]:
+                if best is None or self.bottom_level[t] > self.bottom_level[best]:
                     best = t
             if best is not None:
                 return best
         return None
 
-    def choose(r: int, now: float) -> int | None:
-        if not critical:
-            pending = waiting[r]
-            return heapq.heappop(pending)[-1] if pending else None
-        t = best_ready(r, now)
-        if t is None and helping:
-            t = help_someone(r, now)
-        if t is None:
-            t = least_wait(r)
-        return t
+    def worth_helping(self, t: int, *, mine: float, helped: int, now: float) -> bool:
+        """Whether the helped robot, without tile t, still finishes after the helper with it."""
+        cost = self.cost[t]
+        theirs = max(self.free_at[helped], now) + self.remaining_work[helped]
+        return mine + cost <= theirs - cost + self.help_margin * cost
 
-    for t in range(n):
-        if not supports[t]:
-            offer(t)
-    orders: list[list[int]] = [[] for _ in range(n_robots)]
-    free = [0.0] * n_robots
-    idle = [False] * n_robots
-    events = [(0.0, r) for r in range(n_robots)]
-    helped = 0
-    while events:
-        now, r = heapq.heappop(events)
-        t = choose(r, now)
-        if t is None:
-            idle[r] = True
-            continue
-        if owner_list[t] != r:
-            remaining[owner_list[t]] -= cost[t]
-            remaining[r] += cost[t]
-            owner_list[t] = r
-            helped += 1
-        done[t] = True
-        remaining[r] -= cost[t]
-        arrive = now + pick[t] + travel[t]
-        start = supports_ready[t] if supports_ready[t] > arrive else arrive
-        end = start + place[t]
-        free[r] = end + travel[t]
-        orders[r].append(t)
+    def place(self, t: int, robot: int, now: float) -> float:
+        """Commit tile t to `robot`, leaving its caches at `now`; when the placement ends (s)."""
+        if self.owner[t] != robot:
+            self.take_over(t, robot=robot)
+        self.scheduled[t] = True
+        self.remaining_work[robot] -= self.cost[t]
+        travel, supports_end = self.travel_time[t], self.supports_end[t]
+        arrive = now + self.pick_time[t] + travel
+        end = (supports_end if supports_end > arrive else arrive) + self.place_time[t]
+        self.free_at[robot] = end + travel
+        self.orders[robot].append(t)
+        return end
+
+    def take_over(self, t: int, *, robot: int) -> None:
+        """Hand tile t to the robot that helps with it."""
+        self.remaining_work[self.owner[t]] -= self.cost[t]
+        self.remaining_work[robot] += self.cost[t]
+        self.owner[t] = robot
+        self.helped += 1
+
+    def release_dependents(self, t: int, end: float) -> set[int]:
+        """Offer the tiles that tile t was the last unscheduled support of; who should wake up."""
+        supports_end, unscheduled, owner, idle = self.supports_end, self.unscheduled_supports, self.owner, self.idle
         woken: set[int] = set()
-        for d in dependents[t]:
-            if end > supports_ready[d]:
-                supports_ready[d] = end
+        for d in self.dependents[t]:
+            if end > supports_end[d]:
+                supports_end[d] = end
             unscheduled[d] -= 1
             if unscheduled[d] == 0:
-                offer(d)
-                woken.add(owner_list[d])
-                if helping:
-                    woken.update(k for k in range(n_robots) if idle[k])
-        for k in woken:
-            if idle[k]:
-                idle[k] = False
-                heapq.heappush(events, (max(free[k], now), k))
-        heapq.heappush(events, (free[r], r))
-    if sum(len(o) for o in orders) != n:
-        raise RuntimeError("sequencing left tiles unscheduled: the support relation has a cycle")
-    return Sequencing(orders, np.array(owner_list, dtype=np.int64), helped)
+                self.offer(d)
+                woken.add(owner[d])
+                if self.helping:  # an idle robot may now help with the new tile
+                    woken.update(k for k in range(self.n_robots) if idle[k])
+        return woken
+
+    def wake(self, robots: set[int], now: float) -> None:
+        """Those of `robots` that are idle choose again at `now` (or when they are back, if later)."""
+        for k in robots:
+            if self.idle[k]:
+                self.idle[k] = False
+                heappush(self.robots_free, (max(self.free_at[k], now), k))

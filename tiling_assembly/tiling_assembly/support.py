@@ -40,14 +40,26 @@ def derive_supports(
     source: str,
     tolerances: Tolerances = Tolerances(),
 ) -> tuple[dict[int, tuple[int, ...]], list[tuple[int, int]]]:
-    """Check the geometry and derive the support relation.
+    """Check the geometry and derive the support relation (section 2.1's precedence constraints).
 
     Returns (supports, touching pairs). Explicit supports (`PlacedTile.explicit_supports`) are
     taken as given for their tile after checking that they exist and form no cycle.
     Raises StructureError naming the first broken rule.
     """
     ordered = list(tiles.values())
+    _check_above_floor(ordered, source=source, tolerances=tolerances)
+    found = contacts.find_contacts(ordered, tolerances.contact)
+    _check_no_overlap(found, source=source, tolerances=tolerances)
+    derived = _supports_from_contacts(tiles, found=found, tolerances=tolerances)
+    on_floor = _tiles_on_floor(tiles, tolerances=tolerances)
+    _check_explicit_supports_exist(tiles, source=source)
+    supports = _choose_supports(tiles, derived=derived, on_floor=on_floor)
+    _check_nothing_floating(tiles, supports=supports, on_floor=on_floor, source=source)
+    _check_no_support_cycle(tiles, supports=supports, source=source)
+    return supports, [(c.a, c.b) for c in found]
 
+
+def _check_above_floor(ordered: list[PlacedTile], *, source: str, tolerances: Tolerances) -> None:
     _fail(
         source,
         "below-floor",
@@ -58,7 +70,8 @@ def derive_supports(
         ],
     )
 
-    found = contacts.find_contacts(ordered, tolerances.contact)
+
+def _check_no_overlap(found: list[contacts.Contact], *, source: str, tolerances: Tolerances) -> None:
     _fail(
         source,
         "overlap",
@@ -69,6 +82,11 @@ def derive_supports(
         ],
     )
 
+
+def _supports_from_contacts(
+    tiles: Mapping[int, PlacedTile], *, found: list[contacts.Contact], tolerances: Tolerances
+) -> dict[int, set[int]]:
+    """For every tile, the touching tiles whose top meets its bottom over more than a small area."""
     derived: dict[int, set[int]] = {i: set() for i in tiles}
     for c in found:
         a, b = tiles[c.a], tiles[c.b]
@@ -76,12 +94,17 @@ def derive_supports(
             derived[c.b].add(c.a)
         if contacts.shared_face_area(b, a, tolerances.contact) > tolerances.min_support_area:
             derived[c.a].add(c.b)
+    return derived
 
-    on_floor = {
+
+def _tiles_on_floor(tiles: Mapping[int, PlacedTile], *, tolerances: Tolerances) -> set[int]:
+    return {
         i for i, t in tiles.items()
         if contacts.floor_contact_area(t, tolerances.contact) > tolerances.min_support_area
     }
 
+
+def _check_explicit_supports_exist(tiles: Mapping[int, PlacedTile], *, source: str) -> None:
     unknown = []
     for i, t in tiles.items():
         for s in t.explicit_supports or ():
@@ -91,6 +114,11 @@ def derive_supports(
                 unknown.append(([i], f"tile {i} lists support {s}, which is not a tile of the structure"))
     _fail(source, "unknown-support", unknown)
 
+
+def _choose_supports(
+    tiles: Mapping[int, PlacedTile], *, derived: Mapping[int, set[int]], on_floor: set[int]
+) -> dict[int, tuple[int, ...]]:
+    """Explicit supports where given; otherwise none on the floor, else the derived ones."""
     supports: dict[int, tuple[int, ...]] = {}
     for i, t in tiles.items():
         if t.explicit_supports is not None:
@@ -99,7 +127,16 @@ def derive_supports(
             supports[i] = ()
         else:
             supports[i] = tuple(sorted(derived[i]))
+    return supports
 
+
+def _check_nothing_floating(
+    tiles: Mapping[int, PlacedTile],
+    *,
+    supports: Mapping[int, tuple[int, ...]],
+    on_floor: set[int],
+    source: str,
+) -> None:
     _fail(
         source,
         "floating",
@@ -111,18 +148,18 @@ def derive_supports(
         ],
     )
 
+
+def _check_no_support_cycle(
+    tiles: Mapping[int, PlacedTile], *, supports: Mapping[int, tuple[int, ...]], source: str
+) -> None:
     graph = nx.DiGraph()
     graph.add_nodes_from(tiles)
     graph.add_edges_from((s, i) for i, below in supports.items() for s in below)
-    cycle = []
-    if not nx.is_directed_acyclic_graph(graph):  # quick; finding the cycle is not
-        cycle = nx.find_cycle(graph)
-    if cycle:
-        ids = [u for u, _ in cycle]
-        chain = " -> ".join(str(u) for u in [*ids, ids[0]])
-        _fail(source, "support-cycle", [(ids, f"the supports form a cycle: {chain}")])
-
-    return supports, [(c.a, c.b) for c in found]
+    if nx.is_directed_acyclic_graph(graph):  # quick; finding the cycle is not
+        return
+    ids = [u for u, _ in nx.find_cycle(graph)]
+    chain = " -> ".join(str(u) for u in [*ids, ids[0]])
+    _fail(source, "support-cycle", [(ids, f"the supports form a cycle: {chain}")])
 
 
 def _point_on_face(point: np.ndarray, tile: PlacedTile, tolerance: float) -> bool:
@@ -155,6 +192,14 @@ def check_attachment_sites(
     type has sites, some site of i must lie on a face of j or some site of j on a face of i (a
     site meeting a site is a special case of both).
     """
+    _check_sites_on_surface(tiles, sites_of_type=sites_of_type, source=source, tolerance=tolerance)
+    _check_supports_joined(tiles, sites_of_type=sites_of_type, supports=supports, source=source, tolerance=tolerance)
+
+
+def _check_sites_on_surface(
+    tiles: Mapping[int, PlacedTile], *, sites_of_type: Mapping[str, np.ndarray], source: str, tolerance: float
+) -> None:
+    # one tile of a type is enough: every tile of the type carries the same sites in its own frame
     off_surface = []
     for name, sites in sites_of_type.items():
         example = next((t for t in tiles.values() if t.type_name == name), None)
@@ -169,6 +214,15 @@ def check_attachment_sites(
                 )
     _fail(source, "attachment", off_surface)
 
+
+def _check_supports_joined(
+    tiles: Mapping[int, PlacedTile],
+    *,
+    sites_of_type: Mapping[str, np.ndarray],
+    supports: Mapping[int, tuple[int, ...]],
+    source: str,
+    tolerance: float,
+) -> None:
     unmet = []
     for i, below in supports.items():
         upper = tiles[i]
