@@ -23,7 +23,9 @@ from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from tiling_assembly.structure import Structure
+from tiling_assembly.time_model import TimeModel
 from tiling_sim.experiment_result import ExperimentConfig, ExperimentResult
+from tiling_sim.plan_vs_execution import account_lines, robot_accounts
 from tiling_sim.trial_record import (
     MISSING,
     OCCLUDED,
@@ -127,6 +129,9 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
         lines.append(f"Planned makespan {first.makespan:.0f} s (lower bound {first.lower_bound:.0f} s)")
     if baseline:
         lines.append(f"Makespan without faults: {baseline[0]:.0f} s simulated")
+        trial0 = next(r for r in result.records if r.trial == 0)
+        lines += account_lines(robot_accounts(trial0, result.structure, TimeModel()),
+                               None if first is None else first.makespan, baseline[0])
     if faulty:
         lines.append(
             f"Makespan with faults: median {statistics.median(faulty):.0f} s, "
@@ -355,6 +360,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
                 for o in removal_outcomes(record)
             ],
             "false_missing_calls": false_missing_calls(record),
+            "robot_accounts": [a.as_dict() for a in robot_accounts(record, result.structure, TimeModel())],
             "decisions": record.decisions,
         })
     first = first_plan(result)

@@ -1,0 +1,67 @@
+"""Where an executed build departs from its plan (the planner's time model, paper section 2.1).
+
+Per assembly robot: the work the planner's `TimeModel` predicts for the tiles the robot placed,
+beside the simulated time the robot spent in placements (from `place_started` to the placement's
+end, as the world saw it) and the time it stood between them or before its first (waiting for a
+support, for the plan, for the team's next decision). Work that runs longer or shorter than
+predicted is the time model's error; standing time is what the plan did not foresee.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from tiling_assembly.structure import Structure
+from tiling_assembly.time_model import TimeModel
+from tiling_sim.trial_record import TrialRecord
+
+PLACEMENT_ENDS = frozenset({"placed", "dropped", "already_present", "refused"})
+
+
+@dataclass(frozen=True)
+class RobotAccount:
+    robot: str
+    tiles: list[int]  # placed by this robot, in order
+    planned_work: float  # s, the time model's cost of those tiles
+    placing: float  # s of simulated time in placements, failed ones included
+    standing: float  # s between placements and before the first
+    finished: float  # s after the build started, when its last placement ended
+
+    def as_dict(self) -> dict[str, object]:
+        return {"robot": self.robot, "tiles": self.tiles, "planned_work": round(self.planned_work, 2),
+                "placing": round(self.placing, 2), "standing": round(self.standing, 2),
+                "finished": round(self.finished, 2)}
+
+
+def robot_accounts(record: TrialRecord, structure: Structure, model: TimeModel) -> list[RobotAccount]:
+    """One account per robot that started a placement in `record`, by robot name."""
+    robots = sorted({e.robot for e in record.events if e.kind == "place_started"})
+    return [_account(record, structure, model, robot) for robot in robots]
+
+
+def _account(record: TrialRecord, structure: Structure, model: TimeModel, robot: str) -> RobotAccount:
+    events = sorted((e for e in record.events if e.robot == robot), key=lambda e: e.t)
+    placing, standing, last_end, started = 0.0, 0.0, record.started_at, None
+    for event in events:
+        if event.kind == "place_started":
+            standing += event.t - last_end
+            started = event.t
+        elif event.kind in PLACEMENT_ENDS and started is not None:
+            placing += event.t - started
+            last_end, started = event.t, None
+    tiles = [e.tile for e in events if e.kind == "placed"]
+    return RobotAccount(robot=robot, tiles=tiles, planned_work=model.workload(structure, tiles),
+                        placing=placing, standing=standing, finished=last_end - record.started_at)
+
+
+def account_lines(accounts: list[RobotAccount], planned_makespan: float | None, makespan: float | None) -> list[str]:
+    """The accounts as report lines."""
+    lines = []
+    if planned_makespan and makespan:
+        lines.append(f"Plan vs execution (trial without faults): makespan {makespan:.1f} s executed, "
+                     f"{planned_makespan:.1f} s planned ({100.0 * (makespan / planned_makespan - 1):+.1f}%)")
+    for a in accounts:
+        lines.append(f"  {a.robot}: {len(a.tiles)} tiles, work planned {a.planned_work:.1f} s, placing "
+                     f"{a.placing:.1f} s ({100.0 * (a.placing / max(a.planned_work, 1e-9) - 1):+.1f}%), "
+                     f"standing {a.standing:.1f} s, done at {a.finished:.1f} s")
+    return lines
