@@ -6,23 +6,21 @@ camera/depth/points. It publishes nothing: the test only looks for the publisher
 
 from __future__ import annotations
 
+import sys
+
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 
+from tiling_ros.spinning import run_node
 
-def main() -> None:
-    rclpy.init()
+
+def kinect() -> Node:
+    """The stand-in driver's node, offering its (never published) cloud."""
     node = rclpy.create_node("kinect")
     node.create_publisher(PointCloud2, "points", 1)
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return node
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(run_node(kinect))

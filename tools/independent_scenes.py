@@ -50,6 +50,7 @@ for _threads in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
+from one_line_errors import InputError, OneLineParser, run_command  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 STRUCTURE_DIR = REPO / "config" / "structures"
@@ -83,10 +84,6 @@ YAW_BOUND = math.radians(10.0)
 SCAN_START = 100.0  # s, header stamp of the first scan
 SCAN_PERIOD = 1.0
 POSE_LEAD = 0.005  # the overhead pose is stamped this much before its scan
-
-
-class InputError(Exception):
-    """Bad arguments or a bad structure file: one line for the user."""
 
 
 @dataclass(frozen=True)
@@ -1430,14 +1427,8 @@ def make_scene(structure: Structure, scene_set: SceneSet, seed: int, index: int,
 
 # --- command line ------------------------------------------------------------------------------
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        print(f"error: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="independent_scenes.py", description=__doc__.split("\n\n")[2] if __doc__ else None)
+    p = OneLineParser(prog="independent_scenes.py", description=__doc__.split("\n\n")[2] if __doc__ else None)
     p.add_argument("--out", required=True, help="output folder (one sub-folder per set, one bag per scene)")
     p.add_argument("--seed", required=True, type=int, help="random seed (same seed, same scenes)")
     p.add_argument("--scenes", type=int, default=3, help="scenes per set and structure (default 3)")
@@ -1453,14 +1444,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return _run(args)
-    except InputError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
+    return run_command(build_parser(), _run, argv)
 
 
 def _run(args: argparse.Namespace) -> int:

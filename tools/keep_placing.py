@@ -15,19 +15,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
-import rclpy
-from geometry_msgs.msg import PoseStamped, Twist
-from rclpy.action import ActionClient
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
-from rclpy.signals import SignalHandlerOptions
+from geometry_msgs.msg import PoseStamped
+from goal_sender import GoalSender, run_until_stopped
 from rclpy.time import Time
 
 from tiling_assembly_msgs.action import PlaceTile
@@ -36,23 +29,12 @@ CACHE = (0.0, -1.0)  # the long rectangles' parts cache of paper_14
 GOAL = (0.0, 0.0, 0.0)  # tile 3 of paper_14: x, y, z (yaw 0)
 
 
-class Placing(Node):
+class Placing(GoalSender):
     def __init__(self, pose_file: Path) -> None:
-        super().__init__("keep_placing")
+        super().__init__("keep_placing", PlaceTile, "place_tile")
         self.pose_file = pose_file
-        self.last_command = "none"
-        self.goals_sent = 0
-        self.busy = False
-        self.overhead = self.create_publisher(PoseStamped, "overhead_pose", qos_profile_sensor_data)
-        self.create_subscription(Twist, "cmd_vel", self.on_cmd_vel, 10)
-        self.client = ActionClient(self, PlaceTile, "place_tile")
-        self.create_timer(0.2, self.publish_true_pose)
-        self.create_timer(0.5, self.send_goal_when_idle)
 
-    def on_cmd_vel(self, twist: Twist) -> None:
-        self.last_command = "stop" if twist.linear.x == 0.0 and twist.angular.z == 0.0 else "moving"
-
-    def publish_true_pose(self) -> None:
+    def publish_overhead_pose(self) -> None:
         try:
             x, y, yaw, seen = (float(v) for v in self.pose_file.read_text().split()[:4])
         except (OSError, ValueError):
@@ -65,9 +47,7 @@ class Placing(Node):
         pose.pose.orientation.z, pose.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
         self.overhead.publish(pose)
 
-    def send_goal_when_idle(self) -> None:
-        if self.busy or not self.client.server_is_ready():
-            return
+    def make_goal(self) -> PlaceTile.Goal:
         goal = PlaceTile.Goal()
         goal.tile_id = 3
         goal.tile_type = "long_rectangle"
@@ -75,24 +55,7 @@ class Placing(Node):
         goal.pose.pose.position.x, goal.pose.pose.position.y, goal.pose.pose.position.z = GOAL
         goal.pose.pose.orientation.w = 1.0
         goal.cache.x, goal.cache.y = CACHE
-        self.busy = True
-        self.goals_sent += 1
-        self.client.send_goal_async(goal).add_done_callback(self.on_goal_answered)
-
-    def on_goal_answered(self, future: Any) -> None:
-        handle = future.result()
-        if not handle.accepted:
-            self.busy = False
-            return
-        handle.get_result_async().add_done_callback(lambda _: setattr(self, "busy", False))
-
-
-def drain(executor: SingleThreadedExecutor, seconds: float = 1.0) -> None:
-    """Take what has arrived before the stop was asked for: the robot's last cmd_vel may still wait
-    in the queue on a loaded machine."""
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
+        return goal
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -100,24 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--pose-file", type=Path, required=True, help="the Create emulator's true pose file")
     parser.add_argument("--namespace", default="/robot1", help="the robot's namespace")
     args = parser.parse_args(argv)
-    rclpy.init(args=["keep_placing", "--ros-args", "-r", f"__ns:={args.namespace}"],
-               signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, signal.default_int_handler)  # both signals: KeyboardInterrupt
-    executor = SingleThreadedExecutor()
-    node: Placing | None = None
-    try:
-        node = Placing(args.pose_file)
-        executor.add_node(node)
-        executor.spin()
-    except KeyboardInterrupt:
-        drain(executor)
-    finally:
-        if node is not None:  # else stopped before it started: nothing to tell
-            print(f"last cmd_vel: {node.last_command} ({node.goals_sent} goals sent)", flush=True)
-            node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown()
-    return 0
+    return run_until_stopped("keep_placing", args.namespace, lambda: Placing(args.pose_file))
 
 
 if __name__ == "__main__":

@@ -41,23 +41,15 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from one_line_errors import InputError, OneLineParser, run_command
+
 REPO = Path(__file__).resolve().parent.parent
 SEEN_PIXELS = 40  # a scan "sees" a tile with at least this many pixels of it
 ALL = "all"
 
 
-class InputError(Exception):
-    pass
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        print(f"error: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="score_inspection.py", description="Score vi_node classify on independent scenes.")
+    p = OneLineParser(prog="score_inspection.py", description="Score vi_node classify on independent scenes.")
     p.add_argument("--scenes", required=True, help="folder of scenes (searched recursively for truth.json)")
     p.add_argument("--views", type=int, default=3, help="use the first this many scans of every bag (default 3)")
     p.add_argument("--params", default=None, help="parameter file passed to classify (--params)")
@@ -358,14 +350,7 @@ def report(t: Tally, sets: list[str], views: int, timings: dict[str, dict[str, l
 # --- main --------------------------------------------------------------------------------------
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return _run(args)
-    except InputError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
+    return run_command(build_parser(), _run, argv)
 
 
 def _run(args: argparse.Namespace) -> int:

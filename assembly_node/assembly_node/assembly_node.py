@@ -41,8 +41,8 @@ from tiling_assembly_msgs.msg import (
     RobotStatus,
     Structure,
 )
+from tiling_ros import team_topics as topics
 from tiling_ros.parameters import declare_settings, setting
-from tiling_ros.qos import COORDINATION, HEARTBEATS, LATCHED, REPEATED, REPORTS
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import is_zero, stamp_to_seconds
 
@@ -105,16 +105,16 @@ class AssemblyNode(Node):
         self.goal_sent_at = 0.0  # node time the running place action was sent
         self.server_lost_since: float | None = None  # wall time the action server went away
 
-        self.report_pub = self.create_publisher(PlacementReport, "/placement_reports", REPORTS)
-        self.bid_pub = self.create_publisher(AuctionBid, "/auction/bids", COORDINATION)
-        self.accept_pub = self.create_publisher(AuctionAcceptance, "/auction/acceptances", COORDINATION)
-        self.status_pub = self.create_publisher(RobotStatus, "/robot_status", COORDINATION)
-        self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
-        self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
-        self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
-        self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, REPEATED)
-        self.create_subscription(AuctionAward, "/auction/awards", self.on_award, REPEATED)
-        self.create_subscription(AuctioneerStatus, "/auction/status", self.on_auctioneer_status, HEARTBEATS)
+        self.report_pub = topics.PLACEMENT_REPORTS.publisher(self)
+        self.bid_pub = topics.BIDS.publisher(self)
+        self.accept_pub = topics.ACCEPTANCES.publisher(self)
+        self.status_pub = topics.ROBOT_STATUS.publisher(self)
+        topics.STRUCTURE.subscribe(self, self.on_structure)
+        topics.PLAN.subscribe(self, self.on_plan)
+        topics.PLACEMENT_REPORTS.subscribe(self, self.on_report)
+        topics.ANNOUNCEMENTS.subscribe(self, self.on_announcement)
+        topics.AWARDS.subscribe(self, self.on_award)
+        topics.AUCTIONEER_STATUS.subscribe(self, self.on_auctioneer_status)
         self.place_client = ActionClient(self, PlaceTile, "place_tile")
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)

@@ -10,34 +10,20 @@ The team's planner_node and auction_node run once per team (team.launch.py of au
 """
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
-from launch.launch_description_sources import PythonLaunchDescriptionSource
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
-from launch_ros.substitutions import FindPackageShare
+from launch.substitutions import LaunchConfiguration
 
-from tiling_assembly.team_launch import installed_team, role_nodes
+from tiling_assembly.team_launch import argument, hardware_launch, installed_team, role_nodes
 
 
 def generate_launch_description() -> LaunchDescription:
     role = installed_team()["assembly_robot"]
     namespace = LaunchConfiguration("namespace")
     arguments = [
-        DeclareLaunchArgument("namespace", default_value="robot1", description="the robot's namespace"),
-        DeclareLaunchArgument("base_port", default_value="/dev/ttyUSB0", description="Create base port"),
-        DeclareLaunchArgument("arm_port", default_value="/dev/ttyUSB1", description="Dynamixel bus of the arm"),
-        DeclareLaunchArgument("laser_port", default_value="/dev/ttyACM0", description="Hokuyo URG port"),
-        DeclareLaunchArgument("structure_file", default_value="", description="structure; empty: /structure"),
+        argument("namespace", "robot1", "the robot's namespace"),
+        argument("base_port", "/dev/ttyUSB0", "Create base port"),
+        argument("arm_port", "/dev/ttyUSB1", "Dynamixel bus of the arm"),
+        argument("laser_port", "/dev/ttyACM0", "Hokuyo URG port"),
+        argument("structure_file", "", "structure; empty: /structure"),
     ]
-    drivers = IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(
-            PathJoinSubstitution([FindPackageShare("hardware_drivers"), "launch", role.hardware])
-        ),
-        launch_arguments={
-            "namespace": namespace,
-            "base_port": LaunchConfiguration("base_port"),
-            "arm_port": LaunchConfiguration("arm_port"),
-            "laser_port": LaunchConfiguration("laser_port"),
-            "structure_file": LaunchConfiguration("structure_file"),
-        }.items(),
-    )
+    drivers = hardware_launch(role.hardware, namespace, ["base_port", "arm_port", "laser_port", "structure_file"])
     return LaunchDescription([*arguments, drivers, *role_nodes(role, namespace)])

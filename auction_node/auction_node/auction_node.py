@@ -48,8 +48,8 @@ from tiling_assembly_msgs.msg import (
     TileStateArray,
 )
 from tiling_assembly_msgs.srv import Replan
+from tiling_ros import team_topics as topics
 from tiling_ros.parameters import declare_settings, setting
-from tiling_ros.qos import COORDINATION, DECISIONS, HEARTBEATS, LATCHED, REPEATED, REPORTS
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_nanoseconds, stamp_from_seconds, stamp_to_seconds
 
@@ -128,17 +128,17 @@ class AuctionNode(Node):
         self.in_lost_hands: dict[str, tuple[int, float]] = {}  # lost robot -> (tile in its hands, node time)
         self.lost_tile_grace = float(settings.lost_tile_grace)
 
-        self.announce_pub = self.create_publisher(AuctionAnnouncement, "/auction/announcements", COORDINATION)
-        self.award_pub = self.create_publisher(AuctionAward, "/auction/awards", COORDINATION)
-        self.decision_pub = self.create_publisher(String, "/auction/decisions", DECISIONS)
-        self.status_pub = self.create_publisher(AuctioneerStatus, "/auction/status", COORDINATION)
-        self.create_subscription(AssemblyPlan, "/plan", self.on_plan, LATCHED)
-        self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
-        self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
-        self.create_subscription(TileStateArray, "/tile_states", self.on_tile_states, COORDINATION)
-        self.create_subscription(AuctionBid, "/auction/bids", self.on_bid, REPEATED)
-        self.create_subscription(AuctionAcceptance, "/auction/acceptances", self.on_acceptance, REPEATED)
-        self.create_subscription(RobotStatus, "/robot_status", self.on_status, HEARTBEATS)
+        self.announce_pub = topics.ANNOUNCEMENTS.publisher(self)
+        self.award_pub = topics.AWARDS.publisher(self)
+        self.decision_pub = topics.DECISIONS_LOG.publisher(self)
+        self.status_pub = topics.AUCTIONEER_STATUS.publisher(self)
+        topics.PLAN.subscribe(self, self.on_plan)
+        topics.STRUCTURE.subscribe(self, self.on_structure)
+        topics.PLACEMENT_REPORTS.subscribe(self, self.on_report)
+        topics.TILE_STATES.subscribe(self, self.on_tile_states)
+        topics.BIDS.subscribe(self, self.on_bid)
+        topics.ACCEPTANCES.subscribe(self, self.on_acceptance)
+        topics.ROBOT_STATUS.subscribe(self, self.on_status)
         self.replan_client = self.create_client(Replan, "/replan")
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(0.02, self.tick, clock=steady)

@@ -16,7 +16,6 @@ tf2; where tf2 is installed, run a transform broadcaster from ``odom`` if tools 
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 
 from geometry_msgs.msg import Twist
@@ -29,9 +28,9 @@ from std_msgs.msg import Bool
 
 from hardware_drivers.create_driver import CreateConfig, CreateDriver, CreateState
 from hardware_drivers.node_support import (
-    DiagnosticsReporter,
-    ParameterError,
-    log_event,
+    build_driver,
+    device_diagnostics,
+    monotonic_offset,
     require,
     require_positive,
     run_node,
@@ -76,21 +75,16 @@ class CreateBaseNode(Node):
             max_angular=float(settings.max_angular), watchdog_timeout=float(settings.watchdog_timeout),
             stream_timeout=float(settings.stream_timeout),
         )
-        try:
-            self.driver = CreateDriver(config, on_event=lambda level, text: log_event(self, level, text))
-        except ValueError as error:
-            raise ParameterError(str(error)) from None
+        self.driver = build_driver(self, lambda on_event: CreateDriver(config, on_event=on_event))
         self.odom_publisher = self.create_publisher(Odometry, "odom", SENSOR_PUBLISHER)
         self.battery_publisher = self.create_publisher(BatteryState, "battery", SENSOR_PUBLISHER)
         self.bumper_publisher = self.create_publisher(Bool, "bumper", 10)
         self.drop_publisher = self.create_publisher(Bool, "wheel_drop", 10)
         self.create_subscription(Twist, "cmd_vel", self.on_cmd_vel, qos_profile_sensor_data)
-        self.diagnostics = DiagnosticsReporter(
-            self, f"{self.get_fully_qualified_name()}: iRobot Create", port, self.driver.health.snapshot
-        )
+        self.diagnostics = device_diagnostics(self, "iRobot Create", port, self.driver.health.snapshot)
         self._published_sequence = 0
         # the driver stamps sensor frames with time.monotonic(); map them onto this node's clock
-        self._clock_offset = self.get_clock().now().nanoseconds * 1e-9 - time.monotonic()
+        self._clock_offset = monotonic_offset(self)
         self._hazard_state: tuple[bool, bool] | None = None
         self._hazard_published_at = 0.0
         self.create_timer(1.0 / rate, self.publish_state)

@@ -30,10 +30,10 @@ from trajectory_msgs.msg import JointTrajectory
 
 from hardware_drivers.dynamixel_driver import ArmConfig, ArmDriver, JointGoalError, joint_configs
 from hardware_drivers.node_support import (
-    DiagnosticsReporter,
-    ParameterError,
+    EventSink,
+    build_driver,
     declare_numbers,
-    log_event,
+    device_diagnostics,
     numbers,
     require,
     require_positive,
@@ -164,22 +164,21 @@ class CrustCrawlerArmNode(Node):
         require_positive(settings, "stall_torque")
         self.stall_torque = float(settings.stall_torque)
         require(bool(port), "parameter port must name a device")
-        try:
+
+        def arm_driver(on_event: EventSink) -> ArmDriver:
             joints = joint_configs(arm["names"], ids, offsets, directions, arm["lower"], arm["upper"],
                                    arm["velocities"])
             config = ArmConfig(port=port, joints=joints, baud=baud, rate=rate, reply_timeout=reply_timeout,
                                retries=retries)
-            self.driver = ArmDriver(config, on_event=lambda level, text: log_event(self, level, text))
-        except ValueError as error:
-            raise ParameterError(str(error)) from None
+            return ArmDriver(config, on_event=on_event)
+
+        self.driver = build_driver(self, arm_driver)
         self.arm = arm
         self.joint_publisher = self.create_publisher(JointState, "joint_states", SENSOR_PUBLISHER)
         self.create_subscription(JointTrajectory, "joint_trajectory", self.on_trajectory, 10)
         self.create_subscription(String, "named_pose", self.on_named_pose, 10)
         self.create_service(SetBool, "torque_enable", self.on_torque)
-        self.diagnostics = DiagnosticsReporter(
-            self, f"{self.get_fully_qualified_name()}: CrustCrawler arm", port, self.driver.health.snapshot
-        )
+        self.diagnostics = device_diagnostics(self, "CrustCrawler arm", port, self.driver.health.snapshot)
         self._trajectory: list[tuple[float, dict[str, float]]] = []  # (time from start, goals)
         self._trajectory_start = 0.0
         self._point_time = 0.0

@@ -11,7 +11,6 @@ sensor is switched from SCIP 1.1 to 2.0 when needed and reconnected after errors
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 from rclpy.node import Node
@@ -19,9 +18,9 @@ from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 
 from hardware_drivers.node_support import (
-    DiagnosticsReporter,
-    ParameterError,
-    log_event,
+    build_driver,
+    device_diagnostics,
+    monotonic_offset,
     require,
     require_positive,
     run_node,
@@ -54,20 +53,16 @@ class HokuyoUrgNode(Node):
         port = settings.port
         self.frame_id = settings.frame_id
         require(bool(port), "parameter port must name a device")
-        try:
-            config = UrgConfig(port=port, baud=int(settings.baud), cluster=int(settings.cluster),
-                               skip=int(settings.skip), error_limit=int(settings.error_limit),
-                               scan_timeout=float(settings.scan_timeout))
-            self.driver = UrgDriver(config, on_event=lambda level, text: log_event(self, level, text))
-        except ValueError as error:
-            raise ParameterError(str(error)) from None
+        self.driver = build_driver(self, lambda on_event: UrgDriver(
+            UrgConfig(port=port, baud=int(settings.baud), cluster=int(settings.cluster), skip=int(settings.skip),
+                      error_limit=int(settings.error_limit), scan_timeout=float(settings.scan_timeout)),
+            on_event=on_event,
+        ))
         self.scan_publisher = self.create_publisher(LaserScan, "scan", SENSOR_PUBLISHER)
-        self.diagnostics = DiagnosticsReporter(
-            self, f"{self.get_fully_qualified_name()}: Hokuyo URG", port, self.driver.health.snapshot
-        )
+        self.diagnostics = device_diagnostics(self, "Hokuyo URG", port, self.driver.health.snapshot)
         self._published_sequence = 0
         # map the driver's monotonic stamps onto this node's clock
-        self._clock_offset = self.get_clock().now().nanoseconds * 1e-9 - time.monotonic()
+        self._clock_offset = monotonic_offset(self)
         self.create_timer(0.01, self.publish_scan)
         self.driver.start()
 

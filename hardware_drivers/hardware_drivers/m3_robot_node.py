@@ -49,8 +49,8 @@ from hardware_drivers.goal_slot import GoalSlot
 from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
 from hardware_drivers.node_support import (
-    DiagnosticsReporter,
     ParameterError,
+    device_diagnostics,
     numbers,
     publish_last,
     require,
@@ -162,8 +162,7 @@ class M3RobotNode(Node):
         self.create_subscription(StructureMsg, "/structure", self.on_structure, LATCHED, callback_group=group)
         self.health = DeviceHealth(on_event=None)
         self.health.set_state(Level.OK, "idle")
-        self.diagnostics = DiagnosticsReporter(self, f"{self.get_fully_qualified_name()}: M3 robot",
-                                               "m3_robot", self.health.snapshot)
+        self.diagnostics = device_diagnostics(self, "M3 robot", "m3_robot", self.health.snapshot)
         self.action_server = ActionServer(
             self, PlaceTile, "place_tile", execute_callback=self.execute, goal_callback=self.on_goal,
             cancel_callback=self.on_cancel, callback_group=group,

@@ -8,6 +8,7 @@ Kept apart from the drivers so that they stay ROS-free; every node uses these th
 from __future__ import annotations
 
 import sys
+import time
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
@@ -23,6 +24,8 @@ from tiling_ros.parameters import declare_parameter
 from tiling_ros.qos import DIAGNOSTICS
 
 NodeT = TypeVar("NodeT", bound=Node)
+DriverT = TypeVar("DriverT")
+EventSink = Callable[[Level, str], None]  # a driver's on_event
 
 
 class ParameterError(ValueError):
@@ -68,6 +71,26 @@ def log_event(node: Node, level: Level, message: str) -> None:
         logger.warning(message)
     else:
         logger.error(message)
+
+
+def build_driver(node: Node, build: Callable[[EventSink], DriverT]) -> DriverT:
+    """`build(on_event)` with the driver's events logged by `node`; a ValueError (a setting the
+    driver refuses) becomes a ParameterError, so that the node stops with one line."""
+    try:
+        return build(lambda level, text: log_event(node, level, text))
+    except ValueError as error:
+        raise ParameterError(str(error)) from None
+
+
+def monotonic_offset(node: Node) -> float:
+    """s to add to a driver's time.monotonic() stamp to put it on `node`'s clock."""
+    return node.get_clock().now().nanoseconds * 1e-9 - time.monotonic()
+
+
+def device_diagnostics(node: Node, device: str, hardware_id: str,
+                       health: Callable[[], HealthReport]) -> DiagnosticsReporter:
+    """/diagnostics of `device` (on `hardware_id`, its port), named after the node."""
+    return DiagnosticsReporter(node, f"{node.get_fully_qualified_name()}: {device}", hardware_id, health)
 
 
 def diagnostic_status(report: HealthReport, name: str, hardware_id: str) -> DiagnosticStatus:

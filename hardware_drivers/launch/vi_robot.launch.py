@@ -16,15 +16,12 @@ Topics this project expects from equipment it does not drive (DESIGN.md's contra
 """
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
-
-def argument(name: str, default: str, description: str) -> DeclareLaunchArgument:
-    return DeclareLaunchArgument(name, default_value=default, description=description)
+from tiling_assembly.team_launch import argument
 
 
 def generate_launch_description() -> LaunchDescription:

@@ -18,6 +18,8 @@ TOOLS = REPO / "tools"
 
 
 def _load(name: str):  # type: ignore[no-untyped-def]
+    if str(TOOLS) not in sys.path:  # as when run as a script: the tool imports its neighbours
+        sys.path.insert(0, str(TOOLS))
     spec = importlib.util.spec_from_file_location(name, TOOLS / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

@@ -144,30 +144,9 @@ def test_replayed_scans_give_the_same_states_as_the_offline_command(probe: Probe
         assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), (
             "vi_node did not start"
         )
-        replay = subprocess.run(
-            [
-                ros2_command(),
-                "run",
-                "tiling_sim",
-                "replay_bag",
-                "--bag",
-                bag,
-                "--rate",
-                "0",
-                "--gap",
-                "1.0",
-                "--wait-subscribers",
-                "20",
-                "--start-delay",
-                "1.5",
-            ],
-            cwd=REPO,
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-        assert replay.returncode == 0, replay.stderr
-        assert "published 4 messages" in replay.stdout
+        replayed = replay(bag)
+        assert replayed.returncode == 0, replayed.stderr
+        assert "published 4 messages" in replayed.stdout
         assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
         assert node.poll() is None
     expected = offline(bag, "--mode", "paper", "--no-fuse")

@@ -80,7 +80,7 @@ class SimRobot(Node):
             result, start, end = _finish(handle.abort, Result.FAILED_HARDWARE, str(error)), 0.0, 0.0
         finally:
             self.busy = False
-            self.declare(self.time.now, busy=False)
+        self.declare(self.time.now, busy=False)  # not when shut down mid-goal: the publisher is gone
         result.duration = end - start
         return result
 

@@ -14,12 +14,9 @@ simulation's experiment reads too, with the same parameters (config/vi_node.yaml
 """
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
-from launch.launch_description_sources import PythonLaunchDescriptionSource
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
-from launch_ros.substitutions import FindPackageShare
+from launch.substitutions import LaunchConfiguration
 
-from tiling_assembly.team_launch import installed_team, role_nodes
+from tiling_assembly.team_launch import argument, hardware_launch, installed_team, role_nodes
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -28,19 +25,10 @@ def generate_launch_description() -> LaunchDescription:
     arguments = [
         # declared here too, so that the base (which declares it as well) and the inspection nodes
         # always share one namespace
-        DeclareLaunchArgument("namespace", default_value="vi", description="the scanning robot's namespace"),
-        DeclareLaunchArgument("base_port", default_value="/dev/ttyUSB0", description="Create base port"),
-        DeclareLaunchArgument("start_kinect", default_value="false", description="start a Kinect driver"),
-        DeclareLaunchArgument("structure_file", default_value="", description="structure; empty: /structure"),
+        argument("namespace", "vi", "the scanning robot's namespace"),
+        argument("base_port", "/dev/ttyUSB0", "Create base port"),
+        argument("start_kinect", "false", "start a Kinect driver"),
+        argument("structure_file", "", "structure; empty: /structure"),
     ]
-    base = IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(
-            PathJoinSubstitution([FindPackageShare("hardware_drivers"), "launch", role.hardware])
-        ),
-        launch_arguments={
-            "namespace": namespace,
-            "base_port": LaunchConfiguration("base_port"),
-            "start_kinect": LaunchConfiguration("start_kinect"),
-        }.items(),
-    )
+    base = hardware_launch(role.hardware, namespace, ["base_port", "start_kinect"])
     return LaunchDescription([*arguments, base, *role_nodes(role, namespace)])

@@ -44,7 +44,13 @@ from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from vi_node.classify import TileState
 from vi_node.fusion import TileFusion, fuse_scan
-from vi_node.inspection_settings import InspectionSettings, SettingsError, load_settings, parse_tile_ids
+from vi_node.inspection_settings import (
+    MODES,
+    InspectionSettings,
+    SettingsError,
+    load_settings,
+    parse_tile_ids,
+)
 from vi_node.pipeline import InspectionPipeline
 from vi_node.point_cloud import CloudError, cloud_from_msg
 from vi_node.pose_matching import PoseBuffer, TeamPoses
@@ -254,7 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--mode",
-        choices=["default", "paper"],
+        choices=MODES,
         default=None,
         help="classification mode (default: the parameters')",
     )
@@ -304,7 +310,7 @@ def _run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
-    fusion = TileFusion(settings.evidence(), paper_rules=settings.mode == "paper")
+    fusion = TileFusion(settings.evidence(), paper_rules=settings.paper_rules)
     fuse = settings.fuse_scans and not args.no_fuse
     try:
         with ScanInspector(args.structure, expected, settings, args.jobs) as inspector:
@@ -313,7 +319,7 @@ def _run(args: argparse.Namespace) -> int:
                     result = fuse_scan(fusion, result)
                 if error:
                     print(f"scan at {scan.stamp_ns / 1e9:.3f} s: {error}", file=sys.stderr)
-                line = result_json(scan.stamp_ns, result, error, pixels=settings.mode != "paper")
+                line = result_json(scan.stamp_ns, result, error, pixels=not settings.paper_rules)
                 print(json.dumps(line), flush=True)
     except BagError as error:
         print(f"error: {error}", file=sys.stderr)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
+from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,15 @@ from vi_node.expected_returns import ReturnSettings
 from vi_node.misplacement import MisplacementSettings
 from vi_node.robot_mask import RobotMaskSettings
 
-MODES = ("default", "paper")
+
+class InspectionMode(StrEnum):
+    """How scans are classified; the values are those of the `mode` parameter."""
+
+    DEFAULT = "default"  # pixel evidence, fusion, misplacement
+    PAPER = "paper"  # the paper's section 2.2.3 rules
+
+
+MODES = tuple(mode.value for mode in InspectionMode)
 EVIDENCE = EvidenceSettings()
 RETURNS = ReturnSettings()
 ROBOTS = RobotMaskSettings()
@@ -161,6 +170,16 @@ class InspectionSettings:
     )
     misplacement_yaw: float = setting(MISPLACEMENT.turn, "default: ... or turned this much (rad)")
     misplacement_points: int = setting(3000, "default: judge placement on at most this many candidates")
+
+    @property
+    def inspection_mode(self) -> InspectionMode:
+        """The `mode` parameter as an InspectionMode (raises ValueError on an unknown one)."""
+        return InspectionMode(self.mode)
+
+    @property
+    def paper_rules(self) -> bool:
+        """Whether scans are classified and fused by the paper's rules (paper mode)."""
+        return self.inspection_mode is InspectionMode.PAPER
 
     def evidence(self) -> EvidenceSettings:
         """The settings of the per-pixel evidence (`evidence`, `expected_returns`)."""

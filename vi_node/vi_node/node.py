@@ -180,9 +180,7 @@ class ViNode(Node):
     def _swap_expected(self, structure: StructureModel, expected: list[int]) -> None:
         if self.pipeline is None or self.pipeline.structure is not structure:
             self.pipeline = InspectionPipeline(structure, expected, self.settings)
-            self.fusion = TileFusion(
-                self.pipeline.evidence_settings, paper_rules=self.settings.mode == "paper"
-            )
+            self.fusion = TileFusion(self.pipeline.evidence_settings, paper_rules=self.settings.paper_rules)
         elif tuple(expected) != self.pipeline.expected_ids:
             self.fusion.forget(set(self.pipeline.expected_ids) - set(expected))
             self.pipeline.set_expected(expected)

@@ -148,7 +148,7 @@ class InspectionPipeline:
         settings.validate()
         self.structure = structure
         self.settings = settings
-        self.paper = settings.mode == "paper"
+        self.paper = settings.paper_rules
         fx, fy, cx, cy = settings.intrinsics
         width, height = settings.intrinsics_size
         self.camera = PinholeCamera(fx, fy, cx, cy, int(width), int(height))
