@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 import threading
@@ -15,7 +16,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from std_msgs.msg import Empty, String
 
-from tiling_ros.spinning import Spinner
+from tiling_ros.spinning import TEARDOWN_PATIENCE, Spinner
 
 pytestmark = pytest.mark.ros
 
@@ -105,3 +106,23 @@ def _interrupted_startup(signal_name: str, phase: str) -> subprocess.CompletedPr
     script = Path(__file__).parent / "interrupted_startup_node.py"
     return subprocess.run([sys.executable, str(script), signal_name, phase], capture_output=True, text=True,
                           timeout=60)
+
+
+def test_a_node_the_middleware_never_releases_still_ends_its_process() -> None:
+    """A DDS participant's deletion blocked for good once over a lossy link (the process hung until
+    killed); the process now leaves after TEARDOWN_PATIENCE with one line and exit code 0."""
+    node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "hanging_teardown_node.py")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert node.stdout is not None and node.stdout.readline().strip() == "ready"
+        stopped_at = time.monotonic()
+        node.send_signal(signal.SIGINT)
+        output, _ = node.communicate(timeout=TEARDOWN_PATIENCE + 10.0)
+        assert node.returncode == 0, output
+        assert time.monotonic() - stopped_at >= TEARDOWN_PATIENCE
+        assert output.strip().splitlines() == [
+            f"hanging_teardown_node: the middleware did not release the node within {TEARDOWN_PATIENCE:g} s; "
+            "exiting without it"]
+    finally:
+        if node.poll() is None:
+            node.kill()

@@ -11,16 +11,18 @@ So rclpy's signal handlers are not installed: Ctrl-C and SIGTERM raise KeyboardI
 thread (`tiling_assembly.interrupts`, in place from the executable's first line), which only waits
 while the executor spins in a thread of its own (`Spinner`). The spinning then ends, the running
 callbacks are waited for, and only after that are the executor shut down, the node destroyed and
-the context shut down.
+the context shut down; the last two get `TEARDOWN_PATIENCE` s (see `teardown_deadline`).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import TypeVar
 
 import rclpy
@@ -38,6 +40,7 @@ from tiling_assembly.interrupts import (
 NodeT = TypeVar("NodeT", bound=Node)
 
 EXIT_BAD_INPUT = 2  # a parameter, structure file or other start-up input was rejected
+TEARDOWN_PATIENCE = 3.0  # s the middleware gets to release a stopped node (launch escalates after 5 s)
 
 
 def init_ros(args: list[str] | None = None) -> None:
@@ -82,7 +85,10 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
         with recorded_signals():
             if node is not None:
                 stop_node(node, spinner, on_stop, on_shutdown)
-            rclpy.try_shutdown()
+            with teardown_deadline(node.get_name() if node is not None else error_prefix):
+                if node is not None:
+                    node.destroy_node()
+                rclpy.try_shutdown()
     if spinner is not None and spinner.failure is not None:
         raise spinner.failure  # a callback's error: a bug, with its traceback
     return 0
@@ -90,7 +96,7 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
 
 def stop_node(node: NodeT, spinner: Spinner | None, on_stop: Callable[[NodeT], None] | None,
               on_shutdown: Callable[[NodeT], None] | None) -> None:
-    """Stop a node's work and its executor, then destroy it (the context is still up)."""
+    """Stop a node's work and its executor (the caller destroys the node, see `teardown_deadline`)."""
     if on_stop is not None:
         call_reporting_errors(on_stop, node, "while stopping")
     if spinner is not None and not spinner.stop():
@@ -98,7 +104,28 @@ def stop_node(node: NodeT, spinner: Spinner | None, on_stop: Callable[[NodeT], N
               file=sys.stderr)
     if on_shutdown is not None:
         call_reporting_errors(on_shutdown, node, "while shutting down")
-    node.destroy_node()
+
+
+@contextmanager
+def teardown_deadline(name: str, patience: float = TEARDOWN_PATIENCE) -> Iterator[None]:
+    """Leave the process with exit code 0 when the middleware has not released the node within
+    `patience` s: the node's work has stopped, only DDS's own teardown is left. A DDS participant's
+    deletion now and then blocks for good (seen once in 8 trials over a lossy link); without this,
+    the process would hang until killed."""
+    released = threading.Event()
+
+    def give_up_waiting() -> None:
+        if not released.wait(patience):
+            print(f"{name}: the middleware did not release the node within {patience:g} s; exiting without it",
+                  file=sys.stderr, flush=True)
+            sys.stdout.flush()
+            os._exit(0)
+
+    threading.Thread(target=give_up_waiting, name="teardown deadline", daemon=True).start()
+    try:
+        yield
+    finally:
+        released.set()
 
 
 def call_reporting_errors(hook: Callable[[NodeT], None], node: NodeT, when: str) -> None:
