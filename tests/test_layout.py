@@ -40,7 +40,8 @@ def test_no_module_imports_itself_through_others() -> None:
 
 def test_qos_profiles_are_built_in_one_module() -> None:
     builders = [str(path.relative_to(REPO)) for _, tree, path in modules()
-                if any(isinstance(n, ast.Name) and n.id == "QoSProfile" for n in ast.walk(tree))]
+                if any(isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "QoSProfile"
+                       for n in ast.walk(tree))]
     assert builders == ["tiling_ros/tiling_ros/qos.py"]
 
 
