@@ -36,6 +36,7 @@ ENCODER_START = 65300  # close to the wrap so that tests see it
 
 
 class CreateEmulator(EmulatorApp):
+    supports_partial = True
     def __init__(self, link: str, baud: int, model: str, start_pose: tuple[float, float, float],
                  pose_file: str | None, seed: int) -> None:
         super().__init__(link, baud, seed)
@@ -44,8 +45,6 @@ class CreateEmulator(EmulatorApp):
         self.x, self.y, self.yaw = start_pose
         self.pose_file = pose_file
         self.hazards = Hazards(False, False, False, False)
-        self.corrupt_next = 0
-        self.partial_next = False
         self._input = bytearray()
         self._power_up()
         self._last_motion = time.monotonic()
@@ -133,11 +132,9 @@ class CreateEmulator(EmulatorApp):
 
     def send_frame(self) -> None:
         frame = bytearray(create_oi.stream_frame(self.sensor_values(self.stream_ids)))
-        if self.corrupt_next:
-            self.corrupt_next -= 1
+        if self.take_corruption():
             frame[-1] = (frame[-1] + 1) & 0xFF
-        if self.partial_next:
-            self.partial_next = False
+        if self.take_partial():
             frame = frame[: len(frame) // 2]
         self.send(bytes(frame))
 
@@ -252,12 +249,6 @@ class CreateEmulator(EmulatorApp):
                 if self.hazards.wheel_dropped and self.mode == OIMode.SAFE:
                     self._set_mode(OIMode.PASSIVE)  # Safe mode's reaction to a wheel drop
             self.emit(f"{verb} {side}")
-        elif verb == "corrupt":
-            self.corrupt_next = int(words[1]) if len(words) > 1 else 1
-            self.emit(f"corrupt {self.corrupt_next}")
-        elif verb == "partial":
-            self.partial_next = True
-            self.emit("partial")
         elif verb == "pose":
             self.integrate(now)
             self.emit(f"pose {self.x:.6f} {self.y:.6f} {self.yaw:.6f}")

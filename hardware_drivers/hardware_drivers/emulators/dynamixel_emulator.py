@@ -142,7 +142,6 @@ class DynamixelEmulator(EmulatorApp):
         for servo_id, position in stalls.items():
             self.servos[servo_id].stall = position
         self.parser = dx.PacketParser()
-        self.corrupt_next = 0
         self.drop_goals = drop_goals  # probability that a servo misses a goal write
         self.packet_loss = packet_loss  # probability that a servo misses any instruction
         self._next_motion = 0.0
@@ -164,8 +163,7 @@ class DynamixelEmulator(EmulatorApp):
 
     def reply(self, servo: Servo, error: int, params: bytes = b"") -> None:
         packet = bytearray(dx.status_packet(servo.servo_id, error | servo.fault, params))
-        if self.corrupt_next:
-            self.corrupt_next -= 1
+        if self.take_corruption():
             packet[-1] ^= 0x5A
         self.send(bytes(packet))
 
@@ -265,9 +263,6 @@ class DynamixelEmulator(EmulatorApp):
         elif verb == "stall":
             self._servo(words[1]).stall = None if words[2] == "none" else int(words[2])
             self.emit(f"stall {words[1]} {words[2]}")
-        elif verb == "corrupt":
-            self.corrupt_next = int(words[1]) if len(words) > 1 else 1
-            self.emit(f"corrupt {self.corrupt_next}")
         elif verb == "drop-goals":
             self.drop_goals = _probability(words[1])
             self.emit(f"drop-goals {self.drop_goals:g}")

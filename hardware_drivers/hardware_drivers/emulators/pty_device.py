@@ -116,6 +116,7 @@ class EmulatorApp:
     """
 
     tick_period = 0.005
+    supports_partial = False  # whether `partial` (cut the next message in half) means anything here
 
     def __init__(self, link: str, baud: int, seed: int = 1) -> None:
         self.device = PtyDevice(link)
@@ -126,6 +127,8 @@ class EmulatorApp:
         self.running = True
         self._stdin_open = True
         self._baud_warned = False
+        self.corrupt_next = 0  # messages still to corrupt (`corrupt N`)
+        self.partial_next = False  # cut the next message in half (`partial`)
 
     # -- output
     def emit(self, line: str) -> None:
@@ -148,6 +151,18 @@ class EmulatorApp:
             self.emit(f"baud_mismatch driver={driver_baud} device={self.baud}")
         self._baud_warned = not matches
         return matches
+
+    def take_corruption(self) -> bool:
+        """Whether the message going out now is to be corrupted (one of `corrupt N`)."""
+        if not self.corrupt_next:
+            return False
+        self.corrupt_next -= 1
+        return True
+
+    def take_partial(self) -> bool:
+        """Whether the message going out now is to be cut in half (`partial`)."""
+        taken, self.partial_next = self.partial_next, False
+        return taken
 
     # -- hooks
     def on_bytes(self, data: bytes, now: float) -> None:
@@ -186,6 +201,12 @@ class EmulatorApp:
                 self.emit(f"unplugged t={time.monotonic():.6f}")
             elif verb == "plug":
                 self._plug()
+            elif verb == "corrupt":
+                self.corrupt_next = int(words[1]) if len(words) > 1 else 1
+                self.emit(f"corrupt {self.corrupt_next}")
+            elif verb == "partial" and self.supports_partial:
+                self.partial_next = True
+                self.emit("partial")
             elif not self.command(words, now):
                 self.emit(f"error unknown command: {line.strip()}")
         except (IndexError, ValueError) as error:

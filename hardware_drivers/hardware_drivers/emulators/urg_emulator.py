@@ -70,6 +70,7 @@ def ray_cast(origin: Pose2D, angles: np.ndarray, segments: np.ndarray) -> np.nda
 
 class UrgEmulator(EmulatorApp):
     tick_period = 0.005
+    supports_partial = True
 
     def __init__(self, link: str, baud: int, scip_version: str, tile_polygon: np.ndarray,
                  tile_pose: Pose2D | None, segments: np.ndarray, noise: float,
@@ -85,8 +86,6 @@ class UrgEmulator(EmulatorApp):
         self.laser_mount = laser_mount
         self.np_rng = np.random.default_rng(seed)
         self.start_time = time.monotonic()
-        self.corrupt_next = 0
-        self.partial_next = False
         self.fault_status = 0
         self._input = b""
         self._power_up()
@@ -233,12 +232,10 @@ class UrgEmulator(EmulatorApp):
         else:
             ranges = self.measure(request["start"], request["end"], request["cluster"])
             reply = bytearray(scip.scan_reply(echo, b"99", self.timestamp(), ranges, request["chars"]))
-            if self.corrupt_next:
-                self.corrupt_next -= 1
+            if self.take_corruption():
                 position = len(echo) + 12 + 30  # inside the first data line
                 reply[position] = 0x30 + (reply[position] - 0x30 + 1) % 64
-            if self.partial_next:
-                self.partial_next = False
+            if self.take_partial():
                 reply = reply[: len(reply) // 2]
             self.send(bytes(reply))
         if not request["forever"] and request["remaining"] <= 0:
@@ -250,12 +247,6 @@ class UrgEmulator(EmulatorApp):
         if verb == "tile":
             self.tile_pose = None if words[1] == "none" else parse_pose(words[1])
             self.emit(f"tile {words[1]}")
-        elif verb == "corrupt":
-            self.corrupt_next = int(words[1]) if len(words) > 1 else 1
-            self.emit(f"corrupt {self.corrupt_next}")
-        elif verb == "partial":
-            self.partial_next = True
-            self.emit("partial")
         elif verb == "fault":
             self.fault_status = int(words[1])
             self.emit(f"fault {self.fault_status}")
