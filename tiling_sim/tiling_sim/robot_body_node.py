@@ -18,7 +18,9 @@ from typing import Any
 
 from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.timer import Timer
 
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure import StructureError
@@ -53,6 +55,7 @@ class SimRobot(Node):
         self.footprints = [convex_hull_2d(tile.vertices[:, :2]) for tile in structure.tiles.values()]
         self.position: Point2 = self.settings.robot_starts(structure)[self.name]
         self.busy = False
+        self.idle_timer: Timer | None = None  # ends the hold for the team's next decision
         self.time = sim.SimTime(self)
         self.world = sim.WorldClient(self, SimPlace, sim.PLACE)
         self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, SIM_MOTION)
@@ -73,6 +76,7 @@ class SimRobot(Node):
 
     async def execute(self, handle: Any) -> Result:
         self.busy = True
+        self.end_decision_window()
         try:
             result, start, end = await self.place(handle)
         except WorldSilentError as error:
@@ -80,7 +84,7 @@ class SimRobot(Node):
             result, start, end = _finish(handle.abort, Result.FAILED_HARDWARE, str(error)), 0.0, 0.0
         finally:
             self.busy = False
-        self.declare(self.time.now, busy=False)  # not when shut down mid-goal: the publisher is gone
+        self.hold_for_next_goal()  # not when shut down mid-goal: the publisher is gone
         result.duration = end - start
         return result
 
@@ -128,6 +132,22 @@ class SimRobot(Node):
         result = _finish(handle.succeed, Result.SUCCEEDED, "")
         result.placed_pose = goal.pose
         return result, start, at
+
+    def hold_for_next_goal(self) -> None:
+        """Keep the world's clock at this goal's end for `decision_window` s of wall time, then idle:
+        the team's decision about this robot's next goal costs no simulated time (a robot decides in
+        milliseconds; on a loaded host a second of wall time would cost 20 s simulated)."""
+        self.declare(self.time.now, busy=True)
+        self.idle_timer = self.create_timer(self.settings.decision_window, self.end_decision_window,
+                                            clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def end_decision_window(self) -> None:
+        if self.idle_timer is None:
+            return
+        self.destroy_timer(self.idle_timer)
+        self.idle_timer = None
+        if not self.busy:
+            self.declare(self.time.now, busy=False)
 
     def declare(self, arrive_at: float, busy: bool, position: tuple[float, float] | None = None) -> None:
         """Tell the world where the base stands from `arrive_at` (s) on; `busy`: the world's clock waits

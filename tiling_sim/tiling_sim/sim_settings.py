@@ -154,13 +154,16 @@ class RobotBodySettings(BodySettings):
         0.25, "m from a tile's centre to where the base stops to place it (further out if the base would "
         "stand on the structure).")
     base_clearance: float = setting(0.03, "m an assembly robot's base keeps from every tile of the structure.")
+    decision_window: float = setting(
+        1.0, "s of wall time the world's clock waits after a placement for the robot's next goal: the team's "
+        "decision costs no simulated time, however busy the host (see tiling_sim/body_hold.py).")
 
     def check(self, source: str) -> None:
         super().check(source)
-        durations = (self.locate_time, self.pick_time, self.place_time, self.retreat_time)
+        durations = (self.locate_time, self.pick_time, self.place_time, self.retreat_time, self.decision_window)
         if min(durations) < 0 or self.approach_distance < 0 or self.base_clearance < 0:
-            raise _bad(source, "phase durations, 'approach_distance' and 'base_clearance' must not "
-                             "be negative")
+            raise _bad(source, "phase durations, 'decision_window', 'approach_distance' and "
+                             "'base_clearance' must not be negative")
 
     def motion(self) -> MotionModel:
         return MotionModel(
