@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import gc
 import signal
 import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -126,3 +128,29 @@ def test_a_node_the_middleware_never_releases_still_ends_its_process() -> None:
     finally:
         if node.poll() is None:
             node.kill()
+
+
+def test_a_task_the_loop_never_started_is_dropped_without_a_warning() -> None:
+    """An action goal accepted just before the stop leaves a task the loop never runs; dropped as is,
+    its coroutine printed "RuntimeWarning: coroutine ... was never awaited" at exit (base_navigator)."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("unstarted_task", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    spinner = Spinner(node, executor)
+
+    async def never_run() -> None:
+        return None
+
+    try:
+        executor.create_task(never_run)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert spinner.stop(timeout=1.0)
+            executor._tasks.clear()  # what the executor drops when it is gone
+            gc.collect()
+        assert [str(w.message) for w in caught if "never awaited" in str(w.message)] == []
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)

@@ -16,6 +16,7 @@ the context shut down; the last two get `TEARDOWN_PATIENCE` s (see `teardown_dea
 
 from __future__ import annotations
 
+import inspect
 import os
 import sys
 import threading
@@ -208,5 +209,15 @@ class Spinner:
             for worker in list(getattr(pool, "_threads", ())):
                 worker.join(max(0.0, deadline - time.monotonic()))
             finished = wait_for_running_callbacks() and finished  # one taken just before the cancel
+        self._discard_unstarted_tasks()
         self.executor.shutdown(timeout_sec=0)
         return finished
+
+    def _discard_unstarted_tasks(self) -> None:
+        """Close the coroutines of tasks the loop never started (an action goal accepted just before
+        the stop): dropped unstarted, each printed "RuntimeWarning: coroutine ... was never awaited"."""
+        tasks = getattr(self.executor, "_tasks", ())
+        for task, *_ in list(tasks):
+            coroutine = getattr(task, "_handler", None)
+            if inspect.iscoroutine(coroutine) and inspect.getcoroutinestate(coroutine) == inspect.CORO_CREATED:
+                coroutine.close()
