@@ -27,3 +27,15 @@ def test_a_hold_lapses_after_its_wall_time_limit_counted_from_when_it_was_reache
     assert hold.ceiling() is None  # the clock runs on without robot1
     hold.busy_until("robot1", 50.0)  # until its next news
     assert hold.ceiling() == 50.0
+
+
+def test_at_the_start_every_robot_may_begin_its_first_goal_within_its_patience() -> None:
+    hold = BodyHold(limit=5.0)
+    hold.starting(["robot1", "robot2"], at=0.0, patience=1.0)
+    assert hold.ceiling() == 0.0
+    assert hold.lapsed(now=0.0, wall=10.0) == []
+    hold.busy_until("robot1", 0.0)  # robot1's first goal starts (STARTING): held on its own terms
+    assert hold.lapsed(now=0.0, wall=11.2) == []  # robot2 had nothing to begin: no fault, no warning
+    assert hold.ceiling() == 0.0  # robot1 still holds until it declares its first phase
+    hold.busy_until("robot1", 4.0)
+    assert hold.ceiling() == 4.0

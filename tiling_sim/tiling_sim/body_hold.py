@@ -10,6 +10,7 @@ they would in the one process.
 
 A hold its body never ends (the body died, its link is down) lapses after `limit` s of wall time:
 the world's clock never stays stopped for good, and the body is held again from its next news.
+When simulated time starts, every robot holds it for a short while for its first goal (`starting`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from dataclasses import dataclass, field
 @dataclass
 class _Promise:
     due: float  # s of simulated time at which the body's next news is due
+    patience: float | None = None  # s of wall time it may hold (None: the hold's `limit`)
+    expected: bool = False  # its lapse is no fault (the start: a robot may have nothing to begin with)
     held_since: float | None = None  # wall time (s) at which the clock reached `due`
 
 
@@ -31,6 +34,12 @@ class BodyHold:
     def busy_until(self, robot: str, due: float) -> None:
         """`robot` started a phase that ends at `due` (s): it will say what it does next then."""
         self._promises[robot] = _Promise(due)
+
+    def starting(self, robots: list[str], at: float, patience: float) -> None:
+        """Simulated time starts at `at` (s): every robot may begin its first goal then, within
+        `patience` s of wall time (a robot whose first tile waits for supports has none to begin)."""
+        for robot in robots:
+            self._promises.setdefault(robot, _Promise(at, patience, expected=True))
 
     def idle(self, robot: str) -> None:
         """`robot` has nothing under way: it holds nothing."""
@@ -49,8 +58,9 @@ class BodyHold:
                 continue
             if promise.held_since is None:
                 promise.held_since = wall
-            elif wall - promise.held_since > self.limit:
+            elif wall - promise.held_since > (self.limit if promise.patience is None else promise.patience):
                 gone.append(robot)
+        faults = [robot for robot in gone if not self._promises[robot].expected]
         for robot in gone:
             del self._promises[robot]
-        return gone
+        return faults

@@ -108,6 +108,9 @@ class WorldSettings(SimLayout):
         30.0, "Longest the clock waits (s of wall time) for the VI robot's scan it was held for (stopped "
         "while rendered, at the wall clock's pace while judged) before running fast again: the VI body "
         "died or its messages were lost.")
+    start_window: float = setting(
+        1.0, "s of wall time simulated time stays at its start for the assembly robots' first goals (a "
+        "robot on a loaded host would otherwise begin seconds late).")
     body_hold_limit: float = setting(
         5.0, "Longest the clock waits (s of wall time) at the end of an assembly robot's phase for its body "
         "to say what it does next before running on without it: the body died or its link is down.")
@@ -121,8 +124,9 @@ class WorldSettings(SimLayout):
         if self.removals < 0 or self.removal_window_end < self.removal_window_start:
             raise _bad(source, "parameter 'removals' must not be negative and the removal window "
                              "must not end before it starts")
-        if self.scan_hold_limit <= 0 or self.body_hold_limit <= 0:
-            raise _bad(source, "parameters 'scan_hold_limit' and 'body_hold_limit' must be positive")
+        if self.scan_hold_limit <= 0 or self.body_hold_limit <= 0 or self.start_window < 0:
+            raise _bad(source, "parameters 'scan_hold_limit' and 'body_hold_limit' must be positive, "
+                             "'start_window' not negative")
 
 
 @dataclass(frozen=True)

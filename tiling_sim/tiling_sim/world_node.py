@@ -75,10 +75,10 @@ class SimWorld(Node):
         self.cameras = OverheadCameras(s.seed, s.overhead_position_error, math.radians(s.overhead_yaw_error_deg),
                                        [*self.robots, VI_ROBOT])
         self.clock = SimClock(s.real_time_factor)
-        if not s.wait_for_start:
-            self.clock.start(time.monotonic())
         self.hold = ScanHold(s.scan_hold_limit)
         self.body_hold = BodyHold(s.body_hold_limit)
+        if not s.wait_for_start:
+            self.start_clock()
 
         self.clock_pub = self.create_publisher(ClockMsg, "/clock", CLOCK)
         self.event_pub = self.create_publisher(String, sim.EVENTS, SIM_EVENTS)
@@ -104,14 +104,19 @@ class SimWorld(Node):
 
     def on_start(self, _msg: Empty) -> None:
         if not self.clock.running:
-            self.clock.start(time.monotonic())
+            self.start_clock()
             self.get_logger().info("start: simulated time runs")
+
+    def start_clock(self) -> None:
+        self.clock.start(time.monotonic())
+        self.body_hold.starting(self.robots, self.clock.now, self.settings.start_window)
 
     def tick(self) -> None:
         if self.hold.lapsed(time.monotonic()):
             self.get_logger().warn(f"the VI robot's scan held the clock for over {self.settings.scan_hold_limit:g} s "
                                    "of wall time: running on without it")
-        for robot in self.body_hold.lapsed(self.clock.now, time.monotonic()):
+        lapsed = self.body_hold.lapsed(self.clock.now, time.monotonic()) if self.clock.running else []
+        for robot in lapsed:
             self.get_logger().warn(f"{robot}'s body held the clock for over {self.settings.body_hold_limit:g} s of "
                                    "wall time at the end of a phase: running on without it")
         now = self.now()
