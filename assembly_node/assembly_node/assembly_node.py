@@ -47,6 +47,10 @@ from tiling_ros.spinning import run_node
 from tiling_ros.stamps import is_zero, stamp_to_seconds
 
 _TIMES = TimeModel()
+# s a found place_tile server must stay reachable before a goal goes to it: sent the moment the
+# server is found, a goal can run while its acceptance is lost (the server has not yet found this
+# client's reader), and the tile then waits for the action timeout (seen once in a demo)
+SERVER_SETTLE = 1.0
 
 
 @dataclass(frozen=True)
@@ -103,6 +107,7 @@ class AssemblyNode(Node):
         self.last_wait_logged: tuple[int, ...] = ()
         self.goal_handle = None
         self.goal_sent_at = 0.0  # node time the running place action was sent
+        self.server_found_at: float | None = None  # wall time the action server was found
         self.server_lost_since: float | None = None  # wall time the action server went away
 
         self.report_pub = topics.PLACEMENT_REPORTS.publisher(self)
@@ -275,12 +280,22 @@ class AssemblyNode(Node):
             self.get_logger().info(f"tile {decision.tile_id} waits for supports {list(decision.waiting_for)}")
         if decision.kind is not StepKind.PLACE:
             return
-        if not self.place_client.server_is_ready():
-            self.get_logger().warn(
-                "place_tile action server not available; is the robot driver running?", throttle_duration_sec=5.0
-            )
+        if not self.driver_ready():
+            if self.server_found_at is None:
+                self.get_logger().warn(
+                    "place_tile action server not available; is the robot driver running?", throttle_duration_sec=5.0
+                )
             return
         self.send_goal(decision.tile_id)
+
+    def driver_ready(self) -> bool:
+        """The robot's place_tile server has been reachable for `SERVER_SETTLE` s."""
+        if not self.place_client.server_is_ready():
+            self.server_found_at = None
+            return False
+        if self.server_found_at is None:
+            self.server_found_at = time.monotonic()
+        return time.monotonic() - self.server_found_at >= SERVER_SETTLE
 
     def watch_running_goal(self, tile_id: int) -> None:
         """A robot that stops answering must not hold its tile forever."""
@@ -378,7 +393,7 @@ class AssemblyNode(Node):
     def publish_status(self) -> None:
         status = RobotStatus(robot_name=self.robot_name)
         status.header.stamp = self.get_clock().now().to_msg()
-        status.driver_ready = self.place_client.server_is_ready()
+        status.driver_ready = self.driver_ready()
         state = self.executor_state
         if state is None:
             status.state = RobotStatus.IDLE
