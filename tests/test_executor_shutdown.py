@@ -130,6 +130,72 @@ def test_a_node_the_middleware_never_releases_still_ends_its_process() -> None:
             node.kill()
 
 
+def test_a_stop_that_never_returns_still_ends_the_process_with_one_line() -> None:
+    node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "hanging_stop_node.py")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert node.stdout is not None and node.stdout.readline().strip() == "ready"
+        node.send_signal(signal.SIGINT)
+        output, _ = node.communicate(timeout=15.0)
+        assert node.returncode == 1, output
+        assert output.strip().splitlines() == [
+            "hanging_stop_node: stopping took longer than 1 s (a bug); exiting without a clean stop"]
+    finally:
+        if node.poll() is None:
+            node.kill()
+
+
+def test_ctrl_c_anywhere_in_the_wait_leaves_the_spinner_stoppable() -> None:
+    """A signal's KeyboardInterrupt can land at any instruction of `Spinner.wait`. Landing inside an
+    `Event.wait`, it left the event's lock held (or raised RuntimeError: release unlocked lock), and
+    `stop` then hung for good: create_base outlived launch's SIGKILL once. Here the interrupt is
+    raised at each of the wait's instructions in turn, through a trace function."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        for instruction in range(1, 200):
+            outcome, counted = _interrupt_wait_at(context, instruction)
+            assert outcome in ("KeyboardInterrupt", "returned"), f"instruction {instruction}: {outcome}"
+            if counted < instruction:
+                break  # the wait ended before reaching this instruction: every one was tried
+        else:
+            pytest.fail("the wait ran longer than expected")
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def _interrupt_wait_at(context: rclpy.Context, instruction: int) -> tuple[str, int]:
+    """Raise KeyboardInterrupt at the `instruction`-th traced step of `Spinner.wait` (the loop ends
+    after 50 ms); then stop the spinner. (outcome, steps traced); a stop that hangs is an outcome."""
+    node = rclpy.create_node(f"interrupted_wait_{instruction}", context=context)
+    spinner = Spinner(node, SingleThreadedExecutor(context=context))
+    spinner.start()
+    steps = 0
+
+    def trace(frame, event, arg):
+        nonlocal steps
+        frame.f_trace_opcodes = True
+        steps += 1
+        if steps == instruction:
+            raise KeyboardInterrupt
+        return trace
+
+    threading.Timer(0.05, spinner._stopping.set).start()
+    sys.settrace(trace)
+    try:
+        spinner.wait()
+        outcome = "returned"
+    except BaseException as error:
+        outcome = type(error).__name__
+    finally:
+        sys.settrace(None)
+    stopper = threading.Thread(target=spinner.stop, args=(1.0,), daemon=True)
+    stopper.start()
+    stopper.join(5.0)
+    node.destroy_node()
+    return ("stop hung" if stopper.is_alive() else outcome), steps
+
+
 def test_a_task_the_loop_never_started_is_dropped_without_a_warning() -> None:
     """An action goal accepted just before the stop leaves a task the loop never runs; dropped as is,
     its coroutine printed "RuntimeWarning: coroutine ... was never awaited" at exit (base_navigator)."""

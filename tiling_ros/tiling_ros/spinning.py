@@ -42,6 +42,7 @@ NodeT = TypeVar("NodeT", bound=Node)
 
 EXIT_BAD_INPUT = 2  # a parameter, structure file or other start-up input was rejected
 TEARDOWN_PATIENCE = 3.0  # s the middleware gets to release a stopped node (launch escalates after 5 s)
+STOP_PATIENCE = 10.0  # s for on_stop, the running callbacks (5 s) and on_shutdown together
 
 
 def init_ros(args: list[str] | None = None) -> None:
@@ -53,7 +54,7 @@ def init_ros(args: list[str] | None = None) -> None:
 def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exception], ...] = (), *,
              args: list[str] | None = None, executor: Callable[[], Executor] = SingleThreadedExecutor,
              on_stop: Callable[[NodeT], None] | None = None, on_shutdown: Callable[[NodeT], None] | None = None,
-             error_prefix: str = "error") -> int:
+             error_prefix: str = "error", stop_patience: float = STOP_PATIENCE) -> int:
     """Run one node for a whole process; returns the exit code.
 
     A start-up error of the types given prints one line `<error_prefix>: <error>` on stderr and gives
@@ -61,8 +62,9 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
     while `make_node` runs takes effect once the node is built, so that a node with threads or
     devices already started is stopped like any other. Stopping: `on_stop` asks long callbacks to
     return (a navigation, a mission), the callbacks still running are waited for, `on_shutdown`
-    runs, the node is destroyed. A further signal while it stops is ignored (it could only cut the
-    stop short and leave threads inside rclpy at exit, which aborts the process).
+    runs, the node is destroyed; each of the two stages has a deadline (`stop_deadline`,
+    `teardown_deadline`). A further signal while it stops is ignored (it could only cut the stop
+    short and leave threads inside rclpy at exit, which aborts the process).
     """
     node: NodeT | None = None
     spinner: Spinner | None = None
@@ -85,7 +87,8 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
     finally:
         with recorded_signals():
             if node is not None:
-                stop_node(node, spinner, on_stop, on_shutdown)
+                with stop_deadline(node.get_name(), stop_patience):
+                    stop_node(node, spinner, on_stop, on_shutdown)
             with teardown_deadline(node.get_name() if node is not None else error_prefix):
                 if node is not None:
                     node.destroy_node()
@@ -113,20 +116,39 @@ def teardown_deadline(name: str, patience: float = TEARDOWN_PATIENCE) -> Iterato
     `patience` s: the node's work has stopped, only DDS's own teardown is left. A DDS participant's
     deletion now and then blocks for good (seen once in 8 trials over a lossy link); without this,
     the process would hang until killed."""
-    released = threading.Event()
+    with exit_unless_done_within(
+            patience, f"{name}: the middleware did not release the node within {patience:g} s; exiting without it",
+            exit_code=0):
+        yield
+
+
+@contextmanager
+def stop_deadline(name: str, patience: float = STOP_PATIENCE) -> Iterator[None]:
+    """Leave the process with one line and exit code 1 when stopping the node's own work takes
+    longer than `patience` s: every step of the stop has a timeout of its own, so this is a bug, but
+    the process must still end before launch's SIGKILL (15 s after its SIGINT)."""
+    with exit_unless_done_within(
+            patience, f"{name}: stopping took longer than {patience:g} s (a bug); exiting without a clean stop",
+            exit_code=1):
+        yield
+
+
+@contextmanager
+def exit_unless_done_within(patience: float, message: str, exit_code: int) -> Iterator[None]:
+    """The block, or `message` on stderr and `os._exit(exit_code)` once it has run `patience` s."""
+    done = threading.Event()
 
     def give_up_waiting() -> None:
-        if not released.wait(patience):
-            print(f"{name}: the middleware did not release the node within {patience:g} s; exiting without it",
-                  file=sys.stderr, flush=True)
+        if not done.wait(patience):
+            print(message, file=sys.stderr, flush=True)
             sys.stdout.flush()
-            os._exit(0)
+            os._exit(exit_code)
 
-    threading.Thread(target=give_up_waiting, name="teardown deadline", daemon=True).start()
+    threading.Thread(target=give_up_waiting, name="deadline", daemon=True).start()
     try:
         yield
     finally:
-        released.set()
+        done.set()
 
 
 def call_reporting_errors(hook: Callable[[NodeT], None], node: NodeT, when: str) -> None:
@@ -183,9 +205,14 @@ class Spinner:
             self._loop_ended.set()
 
     def wait(self) -> None:
-        """Until the loop ends (the context shut down, or a callback failed); Ctrl-C interrupts it."""
-        while not self._loop_ended.wait(0.5):
-            pass
+        """Until the loop ends (the context shut down, or a callback failed); Ctrl-C interrupts it.
+
+        Polls with a plain sleep: the KeyboardInterrupt of a signal can land between a lock's
+        acquisition and the block that releases it, and an `Event.wait` interrupted there leaves the
+        event's lock held for good; `stop`, waiting on the same event, then hung the process past
+        launch's SIGKILL (create_base, once in a full test run)."""
+        while not self._loop_ended.is_set():
+            time.sleep(self.POLL)
 
     def stop(self, timeout: float = 5.0) -> bool:
         """End the loop, wait up to `timeout` s for running callbacks, shut the executor down.
