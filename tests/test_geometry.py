@@ -174,16 +174,19 @@ def test_touching_and_separate_tiles() -> None:
     assert (13, 14) not in touching
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 0.3), st.floats(0.01, 0.2)),
-                min_size=2, max_size=25))
-def test_sweep_finds_exactly_the_overlapping_boxes(boxes: list[tuple[float, float, float, float]]) -> None:
+                min_size=2, max_size=25), st.sampled_from([1.0, 1e9]))
+def test_candidate_pairs_are_exactly_the_overlapping_boxes_in_sweep_order(
+        boxes: list[tuple[float, float, float, float]], spread: float) -> None:
+    """Spatial hashing finds what a brute force finds, in the order of a sort and sweep on x (also
+    for tiles kilometres apart, where the grid is sparse)."""
     shape = prism_shape(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float), 1.0)
     tiles = []
     for k, (x, y, z, size) in enumerate(boxes):
-        scaled = PlacedTile(k + 1, "box", shape, np.eye(3) * size, np.array([x, y, z]))
+        scaled = PlacedTile(k + 1, "box", shape, np.eye(3) * size, np.array([x * spread, y, z]))
         tiles.append(scaled)
-    found = set(contacts.candidate_pairs(tiles, 0.001))
+    found = contacts.candidate_pairs(tiles, 0.001)
     brute = {
         (i, j)
         for i in range(len(tiles))
@@ -191,7 +194,9 @@ def test_sweep_finds_exactly_the_overlapping_boxes(boxes: list[tuple[float, floa
         if np.all(tiles[i].aabb[0] - 0.001 <= tiles[j].aabb[1] + 0.001)
         and np.all(tiles[j].aabb[0] - 0.001 <= tiles[i].aabb[1] + 0.001)
     }
-    assert found == brute
+    assert set(found) == brute and len(found) == len(brute)
+    rank = {int(k): r for r, k in enumerate(np.argsort([t.aabb[0][0] - 0.001 for t in tiles], kind="stable"))}
+    assert found == sorted(brute, key=lambda p: (min(rank[p[0]], rank[p[1]]), max(rank[p[0]], rank[p[1]])))
 
 
 @settings(max_examples=50, deadline=None)
@@ -221,3 +226,12 @@ def test_convex_overlap_area() -> None:
 def test_convex_shape_rejects_interior_points() -> None:
     with pytest.raises(ValueError, match="not corners"):
         convex_shape(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0.1, 0.1, 0.1]], float))
+
+
+def test_cell_keys_are_equal_exactly_for_equal_cells_also_on_a_sparse_grid() -> None:
+    dense = np.array([[0, 0, 0], [3, 1, 2], [0, 0, 0], [3, 1, 2], [3, 1, 1]], dtype=np.int64)
+    sparse = dense * np.array([2**40, 1, 2**30])  # the grid's size overflows int64
+    for cells, shape in ((dense, np.array([4, 2, 3])), (sparse, np.array([2**42, 2, 2**32]))):
+        keys = contacts._cell_keys(cells, shape)
+        assert [keys[i] == keys[j] for i, j in ((0, 2), (1, 3), (0, 1), (1, 4), (0, 4))] == [
+            True, True, False, False, False]

@@ -3,8 +3,9 @@
 Two tiles *touch* when their surfaces come within `contact_tolerance`; they *overlap* when they
 interpenetrate by more than `overlap_tolerance` along every separating-axis candidate. Tile j
 *supports* tile i when an upward-facing face of j and a downward-facing face of i lie in the same
-plane and share more than `min_support_area`. A broad phase (sort and sweep over axis-aligned
-boxes) keeps this near-linear for structures of thousands of tiles.
+plane and share more than `min_support_area`. A broad phase (spatial hashing of axis-aligned
+boxes) keeps this near-linear for structures of thousands of tiles, and pairs of box tiles (most
+tiles of big structures) are decided as arrays, all at once.
 """
 
 from __future__ import annotations
@@ -34,29 +35,74 @@ class Contact:
     separation: float  # m, signed: <= 0 in contact, < -OVERLAP_TOLERANCE overlapping
 
 
-def candidate_pairs(tiles: list[PlacedTile], margin: float) -> list[tuple[int, int]]:
-    """Index pairs whose bounding boxes, grown by `margin`, intersect (sort and sweep on x)."""
+@dataclass(frozen=True)
+class Boxes:
+    """The tiles' axis-aligned bounding boxes as arrays, in the order of the tile list, and which
+    tiles are exactly their box (an axis-aligned box tile: every test on it is a test on arrays)."""
+
+    lo: Array  # (N, 3)
+    hi: Array  # (N, 3)
+    exact: NDArray[np.bool_]  # (N,)
+
+    @classmethod
+    def of(cls, tiles: list[PlacedTile]) -> Boxes:
+        lo = np.array([t.aabb[0] for t in tiles]).reshape(-1, 3)
+        hi = np.array([t.aabb[1] for t in tiles]).reshape(-1, 3)
+        box = np.prod(hi - lo, axis=1)
+        volume = np.array([t.volume for t in tiles])
+        return cls(lo, hi, np.abs(box - volume) <= 1e-9 + 1e-6 * box)
+
+
+def candidate_pairs(tiles: list[PlacedTile], margin: float, boxes: Boxes | None = None) -> list[tuple[int, int]]:
+    """Index pairs (i < j) whose bounding boxes, grown by `margin`, intersect.
+
+    Spatial hashing: the cells are as large as the largest box, so that a box covers at most two
+    cells along each axis; boxes sharing a cell are the candidates, tested as arrays. The pairs
+    come in the order of a sort and sweep on x (by the x-rank of the pair's first box, then of its
+    second), the order the structure's contacts and rule violations have always been reported in.
+    """
     if len(tiles) < 2:
         return []
-    lo = np.array([t.aabb[0] for t in tiles]) - margin
-    hi = np.array([t.aabb[1] for t in tiles]) + margin
-    order = np.argsort(lo[:, 0], kind="stable")
-    lo_sorted, hi_sorted = lo[order], hi[order]
-    # for each box, the sorted boxes that start before it ends
-    ends = np.searchsorted(lo_sorted[:, 0], hi_sorted[:, 0], side="right")
-    pairs: list[tuple[int, int]] = []
-    for k in range(len(tiles)):
-        others = np.arange(k + 1, ends[k])
-        if len(others) == 0:
-            continue
-        hit = np.all(
-            (lo_sorted[others, 1:] <= hi_sorted[k, 1:]) & (hi_sorted[others, 1:] >= lo_sorted[k, 1:]),
-            axis=1,
-        )
-        a = order[k]
-        for b in order[others[hit]]:
-            pairs.append((int(min(a, b)), int(max(a, b))))
-    return pairs
+    boxes = boxes or Boxes.of(tiles)
+    lo, hi = boxes.lo - margin, boxes.hi + margin
+    first, second = _sharing_a_cell(lo, hi)
+    hit = np.all((lo[first] <= hi[second]) & (hi[first] >= lo[second]), axis=1)
+    count = len(tiles)
+    rank = np.empty(count, dtype=np.int64)
+    rank[np.argsort(lo[:, 0], kind="stable")] = np.arange(count)
+    first_rank, second_rank = rank[first[hit]], rank[second[hit]]
+    # one integer per pair, ordered as the sweep meets the pairs; repeats (several shared cells) merge
+    sweep_keys = np.unique(np.minimum(first_rank, second_rank) * count + np.maximum(first_rank, second_rank))
+    by_rank = np.argsort(rank)
+    a, b = by_rank[sweep_keys // count], by_rank[sweep_keys % count]
+    return list(zip(np.minimum(a, b).tolist(), np.maximum(a, b).tolist(), strict=True))
+
+
+def _sharing_a_cell(lo: Array, hi: Array) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(i, j) with i < j for every cell two boxes share (a pair may repeat)."""
+    size = np.maximum((hi - lo).max(axis=0), 1e-6)
+    first_cell = np.floor((lo - lo.min(axis=0)) / size).astype(np.int64)
+    last_cell = np.floor((hi - lo.min(axis=0)) / size).astype(np.int64)
+    steps = np.array([(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.int64)
+    cells = first_cell[:, None, :] + steps[None, :, :]  # (N, 8, 3): each box's cells, some twice
+    inside = np.all(cells <= last_cell[:, None, :], axis=2)
+    owner = np.repeat(np.arange(len(lo)), 8)[inside.ravel()]
+    keys = _cell_keys(cells[inside], last_cell.max(axis=0) + 2)
+    by_cell = np.lexsort((owner, keys))
+    keys, owner = keys[by_cell], owner[by_cell]
+    group_end = np.searchsorted(keys, keys, side="right")
+    followers = group_end - np.arange(len(keys)) - 1
+    position = np.repeat(np.arange(len(keys)), followers)
+    starts = np.cumsum(followers) - followers
+    partner = position + 1 + np.arange(len(position)) - np.repeat(starts, followers)
+    return owner[position], owner[partner]
+
+
+def _cell_keys(cells: NDArray[np.int64], shape: NDArray[np.int64]) -> NDArray[np.int64]:
+    """One integer per cell (equal for equal cells)."""
+    if float(np.prod(shape.astype(np.float64))) < 2.0**62:
+        return np.ravel_multi_index(tuple(cells.T), tuple(shape))
+    return np.unique(cells, axis=0, return_inverse=True)[1].ravel()  # far-apart tiles: a sparse grid
 
 
 def _convex_separation(va: Array, axes_a: PieceAxes, vb: Array, axes_b: PieceAxes) -> float:
@@ -74,18 +120,8 @@ def _convex_separation(va: Array, axes_a: PieceAxes, vb: Array, axes_b: PieceAxe
     return float(gaps.max())
 
 
-def _fills_its_box(tile: PlacedTile) -> bool:
-    """Whether the tile is an axis-aligned box, so that its bounding box is exact."""
-    lo, hi = tile.aabb
-    box = float(np.prod(hi - lo))
-    return abs(box - tile.volume) <= 1e-9 + 1e-6 * box
-
-
 def separation(a: PlacedTile, b: PlacedTile) -> float:
     """Signed separation of two tiles (see _convex_separation), over all their convex pieces."""
-    if _fills_its_box(a) and _fills_its_box(b):  # axis-aligned boxes: the boxes are exact
-        gaps = np.maximum(b.aabb[0] - a.aabb[1], a.aabb[0] - b.aabb[1])
-        return float(gaps.max())
     return min(
         _convex_separation(pa, xa, pb, xb)
         for pa, xa in zip(a.pieces, a.piece_axes, strict=True)
@@ -94,15 +130,23 @@ def separation(a: PlacedTile, b: PlacedTile) -> float:
 
 
 def find_contacts(
-    tiles: list[PlacedTile], contact_tolerance: float = CONTACT_TOLERANCE
+    tiles: list[PlacedTile], contact_tolerance: float = CONTACT_TOLERANCE, boxes: Boxes | None = None
 ) -> list[Contact]:
-    """Every pair of tiles that touch or overlap, by tile id."""
+    """Every pair of tiles that touch or overlap, by tile id. Two box tiles are exactly their
+    bounding boxes, so their separation is the boxes' (all such pairs at once)."""
+    boxes = boxes or Boxes.of(tiles)
+    pairs = np.array(candidate_pairs(tiles, contact_tolerance, boxes), dtype=np.int64).reshape(-1, 2)
+    i, j = pairs[:, 0], pairs[:, 1]
+    both_boxes = boxes.exact[i] & boxes.exact[j]
+    gaps = np.maximum(boxes.lo[j] - boxes.hi[i], boxes.lo[i] - boxes.hi[j]).max(axis=1)
+    separations = np.where(both_boxes, gaps, np.nan).tolist()
     contacts = []
-    for i, j in candidate_pairs(tiles, contact_tolerance):
-        sep = separation(tiles[i], tiles[j])
+    for (a, b), sep in zip(pairs.tolist(), separations, strict=True):
+        if sep != sep:  # nan: not two boxes
+            sep = separation(tiles[a], tiles[b])
         if sep <= contact_tolerance:
-            a, b = sorted((tiles[i].tile_id, tiles[j].tile_id))
-            contacts.append(Contact(a, b, sep))
+            low, high = sorted((tiles[a].tile_id, tiles[b].tile_id))
+            contacts.append(Contact(low, high, sep))
     return contacts
 
 
@@ -142,6 +186,49 @@ def shared_face_area(
             for pb in pieces_b:
                 total += polygons.convex_overlap_area(pa, pb)
     return total
+
+
+def resting_pairs(
+    tiles: list[PlacedTile], found: list[Contact], *, boxes: Boxes, plane_tolerance: float = CONTACT_TOLERANCE,
+    min_area: float = MIN_SUPPORT_AREA,
+) -> list[tuple[int, int]]:
+    """(lower id, upper id) of the touching pairs where an upward face of the lower tile meets a
+    downward face of the upper one over more than `min_area` (see `shared_face_area`).
+
+    Two box tiles meet only lower's top to upper's bottom, over the overlap of their x-y rectangles:
+    all such pairs at once; the others face by face."""
+    index = {t.tile_id: k for k, t in enumerate(tiles)}
+    pairs = np.array([(index[c.a], index[c.b]) for c in found], dtype=np.int64).reshape(-1, 2)
+    a, b = pairs[:, 0], pairs[:, 1]
+    both_boxes = (boxes.exact[a] & boxes.exact[b]).tolist()
+    sides = np.minimum(boxes.hi[a, :2], boxes.hi[b, :2]) - np.maximum(boxes.lo[a, :2], boxes.lo[b, :2])
+    overlapping = (np.prod(np.clip(sides, 0.0, None), axis=1) > min_area).tolist()
+    a_under_b = (np.abs(boxes.hi[a, 2] - boxes.lo[b, 2]) <= plane_tolerance).tolist()
+    b_under_a = (np.abs(boxes.hi[b, 2] - boxes.lo[a, 2]) <= plane_tolerance).tolist()
+    resting = []
+    for k, (i, j) in enumerate(pairs.tolist()):
+        lower, upper = tiles[i], tiles[j]
+        if both_boxes[k]:
+            below, above = overlapping[k] and a_under_b[k], overlapping[k] and b_under_a[k]
+        else:
+            below = shared_face_area(lower, upper, plane_tolerance) > min_area
+            above = shared_face_area(upper, lower, plane_tolerance) > min_area
+        if below:
+            resting.append((lower.tile_id, upper.tile_id))
+        if above:
+            resting.append((upper.tile_id, lower.tile_id))
+    return resting
+
+
+def on_the_floor(tiles: list[PlacedTile], *, boxes: Boxes, plane_tolerance: float = CONTACT_TOLERANCE,
+                 min_area: float = MIN_SUPPORT_AREA) -> set[int]:
+    """Ids of the tiles whose downward faces lie on the floor (z = 0) over more than `min_area`."""
+    sides = boxes.hi[:, :2] - boxes.lo[:, :2]
+    box_on_floor = (np.abs(boxes.lo[:, 2]) <= plane_tolerance) & (sides[:, 0] * sides[:, 1] > min_area)
+    return {
+        t.tile_id for t, exact, lying in zip(tiles, boxes.exact.tolist(), box_on_floor.tolist(), strict=True)
+        if (lying if exact else floor_contact_area(t, plane_tolerance) > min_area)
+    }
 
 
 def floor_contact_area(tile: PlacedTile, plane_tolerance: float = CONTACT_TOLERANCE) -> float:

@@ -47,11 +47,13 @@ def derive_supports(
     Raises StructureError naming the first broken rule.
     """
     ordered = list(tiles.values())
+    boxes = contacts.Boxes.of(ordered)
     _check_above_floor(ordered, source=source, tolerances=tolerances)
-    found = contacts.find_contacts(ordered, tolerances.contact)
+    found = contacts.find_contacts(ordered, tolerances.contact, boxes)
     _check_no_overlap(found, source=source, tolerances=tolerances)
-    derived = _supports_from_contacts(tiles, found=found, tolerances=tolerances)
-    on_floor = _tiles_on_floor(tiles, tolerances=tolerances)
+    derived = _supports_from_contacts(ordered, found=found, boxes=boxes, tolerances=tolerances)
+    on_floor = contacts.on_the_floor(
+        ordered, boxes=boxes, plane_tolerance=tolerances.contact, min_area=tolerances.min_support_area)
     _check_explicit_supports_exist(tiles, source=source)
     supports = _choose_supports(tiles, derived=derived, on_floor=on_floor)
     _check_nothing_floating(tiles, supports=supports, on_floor=on_floor, source=source)
@@ -84,24 +86,14 @@ def _check_no_overlap(found: list[contacts.Contact], *, source: str, tolerances:
 
 
 def _supports_from_contacts(
-    tiles: Mapping[int, PlacedTile], *, found: list[contacts.Contact], tolerances: Tolerances
+    ordered: list[PlacedTile], *, found: list[contacts.Contact], boxes: contacts.Boxes, tolerances: Tolerances
 ) -> dict[int, set[int]]:
     """For every tile, the touching tiles whose top meets its bottom over more than a small area."""
-    derived: dict[int, set[int]] = {i: set() for i in tiles}
-    for c in found:
-        a, b = tiles[c.a], tiles[c.b]
-        if contacts.shared_face_area(a, b, tolerances.contact) > tolerances.min_support_area:
-            derived[c.b].add(c.a)
-        if contacts.shared_face_area(b, a, tolerances.contact) > tolerances.min_support_area:
-            derived[c.a].add(c.b)
+    derived: dict[int, set[int]] = {t.tile_id: set() for t in ordered}
+    for lower, upper in contacts.resting_pairs(ordered, found, boxes=boxes, plane_tolerance=tolerances.contact,
+                                               min_area=tolerances.min_support_area):
+        derived[upper].add(lower)
     return derived
-
-
-def _tiles_on_floor(tiles: Mapping[int, PlacedTile], *, tolerances: Tolerances) -> set[int]:
-    return {
-        i for i, t in tiles.items()
-        if contacts.floor_contact_area(t, tolerances.contact) > tolerances.min_support_area
-    }
 
 
 def _check_explicit_supports_exist(tiles: Mapping[int, PlacedTile], *, source: str) -> None:
