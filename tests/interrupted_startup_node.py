@@ -4,6 +4,7 @@
                                                      imported, and comes out as ImportError, as a
                                                      C extension's initialisation (Open3D's) makes it
     interrupted_startup_node.py SIGNAL construction  the signal lands while the node is being built
+    interrupted_startup_node.py SIGNAL executor      the signal lands while its executor is being built
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import signal
 import sys
 import time
 
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from tiling_assembly.interrupts import run_executable
@@ -33,7 +35,25 @@ class SlowStartingNode(Node):
         print("built", flush=True)
 
 
+class QuickNode(Node):
+    def __init__(self) -> None:
+        super().__init__("interrupted_startup_node")
+        print("built", flush=True)
+
+
+class SlowStartingExecutor(SingleThreadedExecutor):
+    """An executor whose construction the signal interrupts, as a signal landing in rclpy's
+    Executor.__init__ does: cut short, its __del__ failed ("Exception ignored in ... __del__")."""
+
+    def __init__(self) -> None:
+        signal_myself()
+        time.sleep(0.5)
+        super().__init__()
+
+
 def main() -> int:
+    if sys.argv[2] == "executor":
+        return run_node(QuickNode, executor=SlowStartingExecutor, on_shutdown=lambda node: print("stopped", flush=True))
     return run_node(SlowStartingNode, on_shutdown=lambda node: print("stopped", flush=True))
 
 

@@ -72,15 +72,15 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
         init_ros(args)
         raise_if_signalled()  # also here: rclpy.init imports the middleware's type support
         try:
-            with postponed_signals():
+            with postponed_signals():  # also the executor: one cut short fails in its __del__
                 node = make_node()
+                spinner = Spinner(node, executor())
+                spinner.start()
         except Exception as error:  # a signal meanwhile came out as KeyboardInterrupt instead
             if not isinstance(error, startup_errors):
                 raise
             print(f"{error_prefix}: {error}", file=sys.stderr)
             return EXIT_BAD_INPUT
-        spinner = Spinner(node, executor())
-        spinner.start()
         spinner.wait()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
