@@ -11,14 +11,39 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
-import networkx as nx
 import numpy as np
 from numpy.typing import NDArray
 
 from tiling_assembly.geometry import PlacedTile, TileShape
 
+if TYPE_CHECKING:
+    import networkx as nx
+
 Array = NDArray[np.float64]
+
+
+def topological_order(supports: Mapping[int, Iterable[int]]) -> list[int] | None:
+    """Every tile after its supports, or None when the supports form a cycle.
+
+    Without networkx: importing it costs a tenth of a second, a third of what loading a 10,000-tile
+    structure now costs in all."""
+    waiting = {tile: len(set(below)) for tile, below in supports.items()}
+    resting_on: dict[int, list[int]] = {tile: [] for tile in supports}
+    for tile, below in supports.items():
+        for support in set(below):
+            resting_on.setdefault(support, []).append(tile)
+    ready = sorted(tile for tile, count in waiting.items() if count == 0)
+    order: list[int] = []
+    while ready:
+        tile = ready.pop()
+        order.append(tile)
+        for above in resting_on.get(tile, ()):
+            waiting[above] -= 1
+            if waiting[above] == 0:
+                ready.append(above)
+    return order if len(order) == len(waiting) else None
 
 
 class StructureError(ValueError):
@@ -81,6 +106,8 @@ class Structure:
     @cached_property
     def precedence(self) -> nx.DiGraph:
         """The precedence DAG: an edge s -> t when tile s must be placed before tile t."""
+        import networkx as nx
+
         graph = nx.DiGraph()
         graph.add_nodes_from(self.tiles)
         graph.add_edges_from((s, t) for t, below in self.supports.items() for s in below)
@@ -90,7 +117,7 @@ class Structure:
     def layers(self) -> dict[int, int]:
         """Layer of every tile: 0 on the floor, else one above its highest support."""
         layer: dict[int, int] = {}
-        for tile in nx.topological_sort(self.precedence):
+        for tile in topological_order(self.supports) or ():  # a Structure's supports form no cycle
             below = self.supports[tile]
             layer[tile] = 1 + max(layer[s] for s in below) if below else 0
         return layer
