@@ -216,6 +216,8 @@ def _check_supports_joined(
     source: str,
     tolerance: float,
 ) -> None:
+    if not any(len(sites) for sites in sites_of_type.values()):
+        return  # no tile type has sites: nothing to join
     unmet = []
     for i, below in supports.items():
         upper = tiles[i]
