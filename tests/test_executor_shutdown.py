@@ -140,6 +140,20 @@ def test_a_node_the_middleware_never_releases_still_ends_its_process() -> None:
             node.kill()
 
 
+def test_an_interpreter_exit_that_never_ends_does_not_keep_a_stopped_node_alive() -> None:
+    node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "hanging_exit_node.py")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert node.stdout is not None and node.stdout.readline().strip() == "ready"
+        node.send_signal(signal.SIGINT)
+        output, _ = node.communicate(timeout=10.0)
+        assert node.returncode == 0, output
+        assert output.split() == ["stopped"]
+    finally:
+        if node.poll() is None:
+            node.kill()
+
+
 def test_a_stop_that_never_returns_still_ends_the_process_with_one_line() -> None:
     node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "hanging_stop_node.py")],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

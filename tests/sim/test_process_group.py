@@ -33,7 +33,7 @@ def test_stop_ends_every_process_and_its_children(tmp_path: Path) -> None:
     sessions = group.pids()
     assert len(session_members(sessions)) >= 3
     started = time.monotonic()
-    group.stop(grace=0.5)
+    group.stop(grace=0.5, term_grace=2.0)
     assert time.monotonic() - started < 8.0
     assert _wait_gone(sessions) == []
     assert (tmp_path / "polite.log").read_text().startswith("up")  # its output went to its log
@@ -80,7 +80,7 @@ def test_stop_reports_the_processes_that_did_not_exit_cleanly(tmp_path: Path) ->
     group.start("deaf", ["bash", "-c", "trap '' INT; sleep 60"])
     group.start("gone", ["true"])
     time.sleep(0.5)
-    assert group.stop(grace=1.0) == {"crashes": -signal.SIGABRT, "deaf": -signal.SIGTERM}
+    assert group.stop(grace=1.0, term_grace=2.0) == {"crashes": -signal.SIGABRT, "deaf": -signal.SIGTERM}
 
 
 def test_a_hung_python_process_leaves_its_stacks_in_its_log(tmp_path: Path) -> None:
@@ -95,6 +95,6 @@ def test_a_hung_python_process_leaves_its_stacks_in_its_log(tmp_path: Path) -> N
     deadline = time.monotonic() + 10.0
     while "up" not in (tmp_path / "hung.log").read_text() and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert group.stop(grace=0.3) == {"hung": -signal.SIGABRT}
+    assert group.stop(grace=0.3, term_grace=2.0) == {"hung": -signal.SIGABRT}
     log = (tmp_path / "hung.log").read_text()
     assert "Fatal Python error: Aborted" in log and "stuck_in_shutdown" in log, log

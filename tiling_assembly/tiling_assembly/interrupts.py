@@ -15,6 +15,7 @@ the script setuptools generates, ~50 ms) cannot be covered from Python.
 from __future__ import annotations
 
 import importlib
+import os
 import signal
 import sys
 import threading
@@ -99,20 +100,41 @@ def postponed_signals() -> Iterator[None]:
             signal.raise_signal(arrived[0])  # now handled as it would have been
 
 
+_skip_interpreter_exit = False
+
+
+def skip_interpreter_exit() -> None:
+    """Ask `run_executable` to end the process at once when `main` returns, without the
+    interpreter's own clean-up: called once a node has been stopped and torn down, because freeing
+    what is left of the middleware at exit now and then blocks for good (an assembly node hung
+    "Garbage-collecting" at exit until the experiment killed it)."""
+    global _skip_interpreter_exit
+    _skip_interpreter_exit = True
+
+
+def _leave(code: int) -> int:
+    if _skip_interpreter_exit:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
 def run_executable(module_name: str, interrupted_exit_code: int = 0) -> int:
     """`module_name.main()` as the whole life of a process; its exit code.
 
     A signal during the module's import ends the process with `interrupted_exit_code` and nothing
     on the terminal: nothing has started yet that would need stopping. Once `main` runs, stopping is
-    its own job; a KeyboardInterrupt it lets out still ends the process quietly.
+    its own job; a KeyboardInterrupt it lets out still ends the process quietly. A node's `main`
+    asks for the process to end without the interpreter's clean-up (`skip_interpreter_exit`).
     """
     raise_keyboard_interrupt_on_signals()
     try:
         main = importlib.import_module(module_name).main
         raise_if_signalled()
-        return int(main() or 0)
+        return _leave(int(main() or 0))
     except KeyboardInterrupt:
-        return interrupted_exit_code
+        return _leave(interrupted_exit_code)
     except Exception:
         if signalled.is_set():
             # the signal broke an import on its way out: a C extension's initialisation (Open3D's)

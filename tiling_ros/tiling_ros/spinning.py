@@ -36,6 +36,7 @@ from tiling_assembly.interrupts import (
     raise_if_signalled,
     raise_keyboard_interrupt_on_signals,
     recorded_signals,
+    skip_interpreter_exit,
 )
 
 NodeT = TypeVar("NodeT", bound=Node)
@@ -93,6 +94,7 @@ def run_node(make_node: Callable[[], NodeT], startup_errors: tuple[type[Exceptio
                 if node is not None:
                     node.destroy_node()
                 rclpy.try_shutdown()
+            skip_interpreter_exit()
     if spinner is not None and spinner.failure is not None:
         raise spinner.failure  # a callback's error: a bug, with its traceback
     return 0

@@ -92,15 +92,17 @@ class ProcessGroup:
         _signal_group(process.popen.pid, signal.SIGKILL)
         process.popen.wait()
 
-    def stop(self, grace: float = 5.0) -> dict[str, int]:
-        """Stop every process: SIGINT, then SIGTERM, then SIGKILL; wait for all of them.
+    def stop(self, grace: float = 5.0, term_grace: float = 10.0) -> dict[str, int]:
+        """Stop every process: SIGINT, then SIGTERM, then SIGKILL; wait for all of them. The
+        defaults are `ros2 launch`'s (SIGTERM 5 s after SIGINT, SIGKILL 10 s after that): a node
+        stops within them (tiling_ros.spinning), so it must within the experiment's too.
 
         Returns the exit code of every process that was still running and did not exit cleanly
         (0) when asked: a node that needed SIGTERM or SIGKILL, or crashed on its way out."""
         asked = [name for name, p in self.processes.items() if p.alive()]
         # SIGABRT before SIGKILL: a Python process started with PYTHONFAULTHANDLER set (the
         # experiment's nodes are) writes every thread's stack to its log, where it hangs
-        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGABRT, 2.0),
+        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, term_grace), (signal.SIGABRT, 2.0),
                           (signal.SIGKILL, 2.0)):
             running = [p for p in self.processes.values() if p.alive()]
             if not running:
