@@ -60,3 +60,12 @@ def test_no_candidate_resolves_a_tile_nothing_can_see() -> None:
         is None
     )
     assert next_viewpoint(scene, low, high, CAMERA, MOUNT, [], unresolved=[8]) is None
+
+
+def test_a_pose_facing_away_from_the_structure_scores_nothing() -> None:
+    """Its view of the structure's box is empty (no pixel at all): the explorer of a 4.8 m arcade
+    crashed on it ("index 0 is out of bounds for axis 1 with size 0")."""
+    scene, low, high = model()
+    away = OverheadPose(1.0, 0.0, math.pi / 2)  # one metre out on +x, looking past the structure
+    ranked = rank_viewpoints(scene, low, high, CAMERA, MOUNT, [away, *around([0.0])], {7: 1.0})
+    assert [r.score for r in ranked] == [1.0, 0.0] and ranked[1].pose == away

@@ -112,8 +112,10 @@ def depth_tolerance(
 def smooth(depth: NDArray[np.float32]) -> Mask:
     """Pixels whose four neighbours are at nearly the same depth (not at a depth edge, not at the
     window's border): there a pixel of lateral noise or of pose error changes nothing."""
-    jump = 0.01 + 0.02 * np.where(np.isfinite(depth), depth, 0.0)
     inside = np.isfinite(depth)
+    if inside.size == 0:
+        return inside  # no pixels: the structure is out of this view (a viewpoint facing away)
+    jump = 0.01 + 0.02 * np.where(np.isfinite(depth), depth, 0.0)
     with np.errstate(invalid="ignore"):  # inf - inf between two blank pixels: nan, compared False
         dy = np.abs(np.diff(depth, axis=0)) <= np.minimum(jump[1:, :], jump[:-1, :])  # False across inf
         dx = np.abs(np.diff(depth, axis=1)) <= np.minimum(jump[:, 1:], jump[:, :-1])
