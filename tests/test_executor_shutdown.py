@@ -123,47 +123,38 @@ def _interrupted_startup(signal_name: str, phase: str) -> subprocess.CompletedPr
 def test_a_node_the_middleware_never_releases_still_ends_its_process() -> None:
     """A DDS participant's deletion blocked for good once over a lossy link (the process hung until
     killed); the process now leaves after TEARDOWN_PATIENCE with one line and exit code 0."""
-    node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "hanging_teardown_node.py")],
+    code, output, seconds = _ctrl_c("hanging_teardown_node.py", timeout=TEARDOWN_PATIENCE + 10.0)
+    assert code == 0, output
+    assert seconds >= TEARDOWN_PATIENCE
+    assert output.strip().splitlines() == [
+        f"hanging_teardown_node: the middleware did not release the node within {TEARDOWN_PATIENCE:g} s; "
+        "exiting without it"]
+
+
+def test_an_interpreter_exit_that_never_ends_does_not_keep_a_stopped_node_alive() -> None:
+    code, output, _ = _ctrl_c("hanging_exit_node.py", timeout=10.0)
+    assert code == 0, output
+    assert output.split() == ["stopped"]
+
+
+def test_a_stop_that_never_returns_still_ends_the_process_with_one_line() -> None:
+    code, output, _ = _ctrl_c("hanging_stop_node.py", timeout=15.0)
+    assert code == 1, output
+    assert output.strip().splitlines() == [
+        "hanging_stop_node: stopping took longer than 1 s (a bug); exiting without a clean stop"]
+
+
+def _ctrl_c(script: str, timeout: float) -> tuple[int, str, float]:
+    """Start a test node script, Ctrl-C it once it prints "ready": its exit code, its output after
+    "ready" and the seconds it took to end."""
+    node = subprocess.Popen([sys.executable, str(Path(__file__).parent / script)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert node.stdout is not None and node.stdout.readline().strip() == "ready"
         stopped_at = time.monotonic()
         node.send_signal(signal.SIGINT)
-        output, _ = node.communicate(timeout=TEARDOWN_PATIENCE + 10.0)
-        assert node.returncode == 0, output
-        assert time.monotonic() - stopped_at >= TEARDOWN_PATIENCE
-        assert output.strip().splitlines() == [
-            f"hanging_teardown_node: the middleware did not release the node within {TEARDOWN_PATIENCE:g} s; "
-            "exiting without it"]
-    finally:
-        if node.poll() is None:
-            node.kill()
-
-
-def test_an_interpreter_exit_that_never_ends_does_not_keep_a_stopped_node_alive() -> None:
-    node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "hanging_exit_node.py")],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        assert node.stdout is not None and node.stdout.readline().strip() == "ready"
-        node.send_signal(signal.SIGINT)
-        output, _ = node.communicate(timeout=10.0)
-        assert node.returncode == 0, output
-        assert output.split() == ["stopped"]
-    finally:
-        if node.poll() is None:
-            node.kill()
-
-
-def test_a_stop_that_never_returns_still_ends_the_process_with_one_line() -> None:
-    node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "hanging_stop_node.py")],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        assert node.stdout is not None and node.stdout.readline().strip() == "ready"
-        node.send_signal(signal.SIGINT)
-        output, _ = node.communicate(timeout=15.0)
-        assert node.returncode == 1, output
-        assert output.strip().splitlines() == [
-            "hanging_stop_node: stopping took longer than 1 s (a bug); exiting without a clean stop"]
+        output, _ = node.communicate(timeout=timeout)
+        return node.returncode, output, time.monotonic() - stopped_at
     finally:
         if node.poll() is None:
             node.kill()
