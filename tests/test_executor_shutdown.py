@@ -18,7 +18,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from std_msgs.msg import Empty, String
 
-from tiling_ros.spinning import TEARDOWN_PATIENCE, Spinner
+from tiling_ros.spinning import GIL_FREE_GRACE, TEARDOWN_PATIENCE, Spinner
 
 pytestmark = pytest.mark.ros
 
@@ -129,6 +129,14 @@ def test_a_node_the_middleware_never_releases_still_ends_its_process() -> None:
     assert output.strip().splitlines() == [
         f"hanging_teardown_node: the middleware did not release the node within {TEARDOWN_PATIENCE:g} s; "
         "exiting without it"]
+
+
+def test_a_teardown_that_holds_the_interpreter_still_ends_the_process() -> None:
+    """The Python deadline cannot run then; faulthandler's watchdog ends the process with the stacks."""
+    code, output, seconds = _ctrl_c("gil_holding_teardown_node.py", timeout=TEARDOWN_PATIENCE + 15.0)
+    assert code == 1, output
+    assert seconds < TEARDOWN_PATIENCE + GIL_FREE_GRACE + 3.0
+    assert "Timeout" in output and "destroy_node" in output
 
 
 def test_an_interpreter_exit_that_never_ends_does_not_keep_a_stopped_node_alive() -> None:

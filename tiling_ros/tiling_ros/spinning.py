@@ -16,6 +16,7 @@ the context shut down; the last two get `TEARDOWN_PATIENCE` s (see `teardown_dea
 
 from __future__ import annotations
 
+import faulthandler
 import inspect
 import os
 import sys
@@ -44,6 +45,7 @@ NodeT = TypeVar("NodeT", bound=Node)
 EXIT_BAD_INPUT = 2  # a parameter, structure file or other start-up input was rejected
 TEARDOWN_PATIENCE = 3.0  # s the middleware gets to release a stopped node (launch escalates after 5 s)
 STOP_PATIENCE = 10.0  # s for on_stop, the running callbacks (5 s) and on_shutdown together
+GIL_FREE_GRACE = 1.0  # s after a deadline: the watchdog that needs no interpreter ends the process
 
 
 def init_ros(args: list[str] | None = None) -> None:
@@ -137,7 +139,12 @@ def stop_deadline(name: str, patience: float = STOP_PATIENCE) -> Iterator[None]:
 
 @contextmanager
 def exit_unless_done_within(patience: float, message: str, exit_code: int) -> Iterator[None]:
-    """The block, or `message` on stderr and `os._exit(exit_code)` once it has run `patience` s."""
+    """The block, or `message` on stderr and `os._exit(exit_code)` once it has run `patience` s.
+
+    That takes the interpreter: a hang inside a C call that holds it (rclpy's publisher destroy
+    blocked so in vi_node, past the experiment's SIGABRT) would keep this thread from running. So
+    Python's faulthandler, whose watchdog needs no interpreter, also ends the process
+    `GIL_FREE_GRACE` s later: with every thread's stack on stderr, to find the hang, and exit code 1."""
     done = threading.Event()
 
     def give_up_waiting() -> None:
@@ -147,9 +154,11 @@ def exit_unless_done_within(patience: float, message: str, exit_code: int) -> It
             os._exit(exit_code)
 
     threading.Thread(target=give_up_waiting, name="deadline", daemon=True).start()
+    faulthandler.dump_traceback_later(patience + GIL_FREE_GRACE, exit=True)
     try:
         yield
     finally:
+        faulthandler.cancel_dump_traceback_later()
         done.set()
 
 
