@@ -68,13 +68,13 @@ def candidate_pairs(tiles: list[PlacedTile], margin: float, boxes: Boxes | None 
     first, second = _sharing_a_cell(lo, hi)
     hit = np.all((lo[first] <= hi[second]) & (hi[first] >= lo[second]), axis=1)
     count = len(tiles)
+    sweep_order = np.argsort(lo[:, 0], kind="stable")
     rank = np.empty(count, dtype=np.int64)
-    rank[np.argsort(lo[:, 0], kind="stable")] = np.arange(count)
+    rank[sweep_order] = np.arange(count)
     first_rank, second_rank = rank[first[hit]], rank[second[hit]]
     # one integer per pair, ordered as the sweep meets the pairs; repeats (several shared cells) merge
     sweep_keys = np.unique(np.minimum(first_rank, second_rank) * count + np.maximum(first_rank, second_rank))
-    by_rank = np.argsort(rank)
-    a, b = by_rank[sweep_keys // count], by_rank[sweep_keys % count]
+    a, b = sweep_order[sweep_keys // count], sweep_order[sweep_keys % count]
     return list(zip(np.minimum(a, b).tolist(), np.maximum(a, b).tolist(), strict=True))
 
 
