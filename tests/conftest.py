@@ -3,6 +3,11 @@
 Every test session claims a ROS_DOMAIN_ID of its own (a lock file per domain id, held for the
 session) and keeps discovery on this host, so parallel sessions on one machine never cross-talk.
 The variables are set at import time so that every process a test starts inherits them.
+
+A test that hangs inside a C call holding the GIL is out of pytest-timeout's reach; pytest's
+faulthandler, whose watchdog needs no interpreter, then ends the session with every thread's stack
+(`faulthandler_timeout` in pyproject.toml). The session ends without the interpreter's clean-up,
+which would tear the middleware down (see `ros_helpers.isolated_domains`).
 """
 
 from __future__ import annotations
@@ -10,6 +15,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -29,6 +35,23 @@ os.environ["PYTHONUNBUFFERED"] = "1"
 
 def pytest_report_header(config: pytest.Config) -> str:
     return f"ROS_DOMAIN_ID={_DOMAIN_ID} (claimed for this session), discovery on localhost only"
+
+
+_SESSION = pytest.StashKey[pytest.Session]()
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    session.config.stash[_SESSION] = session
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config: pytest.Config) -> None:
+    session = config.stash.get(_SESSION, None)
+    if session is None:
+        return
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(int(session.exitstatus))
 
 
 @pytest.fixture(scope="session")

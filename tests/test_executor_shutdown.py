@@ -16,6 +16,7 @@ import rclpy
 from conftest import stop_node_process
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+from ros_helpers.isolated_domains import fresh_domain
 from std_msgs.msg import Empty, String
 
 from tiling_ros.spinning import GIL_FREE_GRACE, TEARDOWN_PATIENCE, Spinner
@@ -24,8 +25,7 @@ pytestmark = pytest.mark.ros
 
 
 def test_a_running_callback_finishes_before_the_node_is_destroyed() -> None:
-    context = rclpy.Context()
-    rclpy.init(context=context)
+    context = fresh_domain().context
     node = rclpy.create_node("slow_callback", context=context)
     publisher = node.create_publisher(Empty, "slow_callback_done", 1)
     started, finished = threading.Event(), threading.Event()
@@ -48,16 +48,15 @@ def test_a_running_callback_finishes_before_the_node_is_destroyed() -> None:
         assert spinner.failure is None
     finally:
         node.destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
 def test_ctrl_c_lets_a_running_callback_publish_before_ros_shuts_down() -> None:
     """rclpy's own SIGINT handler would shut the context down under the callback ("publisher's
     context is invalid"); run_node waits for the callback first."""
+    domain = fresh_domain()
     node = subprocess.Popen([sys.executable, str(Path(__file__).parent / "slow_callback_node.py")],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    context = rclpy.Context()
-    rclpy.init(context=context)
+                            env=domain.environ(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    context = domain.context
     listener = rclpy.create_node("slow_callback_listener", context=context)
     heard: list[str] = []
     listener.create_subscription(String, "slow_callback", lambda m: heard.append(m.data), 10)
@@ -82,7 +81,6 @@ def test_ctrl_c_lets_a_running_callback_publish_before_ros_shuts_down() -> None:
             node.kill()
         executor.shutdown()
         listener.destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
 @pytest.mark.parametrize("signal_name", ["SIGINT", "SIGTERM"])
@@ -173,18 +171,14 @@ def test_ctrl_c_anywhere_in_the_wait_leaves_the_spinner_stoppable() -> None:
     `Event.wait`, it left the event's lock held (or raised RuntimeError: release unlocked lock), and
     `stop` then hung for good: create_base outlived launch's SIGKILL once. Here the interrupt is
     raised at each of the wait's instructions in turn, through a trace function."""
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    try:
-        for instruction in range(1, 200):
-            outcome, counted = _interrupt_wait_at(context, instruction)
-            assert outcome in ("KeyboardInterrupt", "returned"), f"instruction {instruction}: {outcome}"
-            if counted < instruction:
-                break  # the wait ended before reaching this instruction: every one was tried
-        else:
-            pytest.fail("the wait ran longer than expected")
-    finally:
-        rclpy.try_shutdown(context=context)
+    context = fresh_domain().context
+    for instruction in range(1, 200):
+        outcome, counted = _interrupt_wait_at(context, instruction)
+        assert outcome in ("KeyboardInterrupt", "returned"), f"instruction {instruction}: {outcome}"
+        if counted < instruction:
+            break  # the wait ended before reaching this instruction: every one was tried
+    else:
+        pytest.fail("the wait ran longer than expected")
 
 
 def _interrupt_wait_at(context: rclpy.Context, instruction: int) -> tuple[str, int]:
@@ -222,8 +216,7 @@ def _interrupt_wait_at(context: rclpy.Context, instruction: int) -> tuple[str, i
 def test_a_task_the_loop_never_started_is_dropped_without_a_warning() -> None:
     """An action goal accepted just before the stop leaves a task the loop never runs; dropped as is,
     its coroutine printed "RuntimeWarning: coroutine ... was never awaited" at exit (base_navigator)."""
-    context = rclpy.Context()
-    rclpy.init(context=context)
+    context = fresh_domain().context
     node = rclpy.create_node("unstarted_task", context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
@@ -242,4 +235,3 @@ def test_a_task_the_loop_never_started_is_dropped_without_a_warning() -> None:
         assert [str(w.message) for w in caught if "never awaited" in str(w.message)] == []
     finally:
         node.destroy_node()
-        rclpy.try_shutdown(context=context)

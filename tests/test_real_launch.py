@@ -24,11 +24,8 @@ from pathlib import Path
 import pytest
 import rclpy
 from drivers.processes import Emulator
-from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
-
-from tiling_sim.ros_domain import claim_domain_id
+from ros_helpers.isolated_domains import IsolatedDomain, fresh_domain
 
 REPO = Path(__file__).resolve().parent.parent
 REAL_LAUNCH = Path(os.environ.get("TILING_REAL_LAUNCH", "/opt/ros2-real-launch"))
@@ -143,27 +140,13 @@ def stand_in_kinect_prefix(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @contextlib.contextmanager
-def own_domain() -> Iterator[int]:
-    """A ROS domain id of this launch alone, so that nodes of an earlier case still fading from the
-    graph are never taken for this one's."""
-    domain, lock = claim_domain_id()
-    try:
-        yield domain
-    finally:
-        lock.close()
-
-
-@contextlib.contextmanager
-def graph_observer(domain: int) -> Iterator[Node]:
+def graph_observer(domain: IsolatedDomain) -> Iterator[Node]:
     """A node of the test's own in `domain`, to look at the graph (no spinning needed for that)."""
-    context = Context()
-    rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("real_launch_test_observer", context=context)
+    node = rclpy.create_node("real_launch_test_observer", context=domain.context)
     try:
         yield node
     finally:
         node.destroy_node()
-        context.try_shutdown()
 
 
 @contextlib.contextmanager
@@ -282,13 +265,14 @@ def assert_stopped_cleanly(case: LaunchCase, code: int | None, output: str) -> N
 def test_launch_file_starts_every_node_and_stops_cleanly_at_ctrl_c(
     case: LaunchCase, stand_in_kinect_prefix: Path, tmp_path: Path,
 ) -> None:
-    with own_domain() as domain, emulators(case.emulators, tmp_path) as ports, graph_observer(domain) as observer:
+    domain = fresh_domain()  # of this launch alone: nodes of an earlier case still fading from the graph
+    with emulators(case.emulators, tmp_path) as ports, graph_observer(domain) as observer:
         values = {**ports, "absent": str(tmp_path / "absent"),
                   "structure": str(REPO / "config" / "structures" / "paper_14.yaml")}
         case = replace(case, arguments=tuple(a.format(**values) for a in case.arguments),
                        log_lines=tuple(line.format(**values) for line in case.log_lines))
         command = [str(REPO / "tools" / "real-launch-env"), "ros2", "launch", case.package, case.file, *case.arguments]
-        launch = LaunchProcess(command, launch_environment(domain, stand_in_kinect_prefix))
+        launch = LaunchProcess(command, launch_environment(domain.domain_id, stand_in_kinect_prefix))
         try:
             wait_until_up(launch, observer, case)
             code = launch.interrupt(SHUTDOWN_TIMEOUT)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -12,6 +11,7 @@ from builtin_interfaces.msg import Duration
 from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
+from ros_helpers.isolated_domains import fresh_domain
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Header
 
@@ -92,11 +92,8 @@ class ExampleSettings:
 
 
 @pytest.fixture
-def context() -> Iterator[rclpy.Context]:
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    yield context
-    rclpy.try_shutdown(context=context)
+def context() -> rclpy.Context:
+    return fresh_domain().context
 
 
 def _node(context: rclpy.Context, *overrides: str) -> Node:

@@ -9,13 +9,12 @@ import time
 from pathlib import Path
 
 import pytest
-import rclpy
 from conftest import ros2_command, stop_node_process
 from rclpy.action import ActionServer
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers.isolated_domains import fresh_domain
 
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure_file import load_structure
@@ -44,9 +43,10 @@ def test_placements_heard_before_the_structure_count() -> None:
     supports = structure.supports[tile]
     command = [ros2_command(), "run", "assembly_node", "assembly_node", "--ros-args", "-r", "__ns:=/robot1",
                "--params-file", str(REPO / "config" / "assembly_node.yaml")]
-    process = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    context = Context()
-    rclpy.init(context=context)
+    domain = fresh_domain()
+    process = subprocess.Popen(command, cwd=REPO, env=domain.environ(), stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
+    context = domain.context
     node = Node("assembly_test_team", context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
@@ -87,8 +87,8 @@ def test_placements_heard_before_the_structure_count() -> None:
         assert spin_until(lambda: tile in goals, 20.0), f"robot1 never placed tile {tile} (goals: {goals})"
     finally:
         server.destroy()
+        executor.shutdown()
         node.destroy_node()
-        rclpy.shutdown(context=context)
         output = stop_node_process(process)  # also checks it stopped without a traceback
     assert "waits for supports" not in output, output
 
@@ -99,10 +99,10 @@ class RobotUnderTest:
     def __init__(self) -> None:
         command = [ros2_command(), "run", "assembly_node", "assembly_node", "--ros-args", "-r", "__ns:=/robot1",
                    "--params-file", str(REPO / "config" / "assembly_node.yaml")]
-        self.process = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                        text=True)
-        self.context = Context()
-        rclpy.init(context=self.context)
+        domain = fresh_domain()
+        self.process = subprocess.Popen(command, cwd=REPO, env=domain.environ(), stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True)
+        self.context = domain.context
         self.node = Node("assembly_test_team", context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -143,8 +143,8 @@ class RobotUnderTest:
 
     def close(self) -> str:
         self.server.destroy()
+        self.executor.shutdown()
         self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
         return stop_node_process(self.process)
 
 

@@ -11,12 +11,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import rclpy
 from conftest import ros2_command, stop_node_process
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers.isolated_domains import fresh_domain
 from std_msgs.msg import String
 
 from tiling_assembly.messages import structure_to_msg
@@ -44,8 +43,8 @@ class Team:
     """Stands in for the structure publisher, one assembly robot and the inspection."""
 
     def __init__(self) -> None:
-        self.context = Context()
-        rclpy.init(context=self.context)
+        self.domain = fresh_domain()
+        self.context = self.domain.context
         self.node = Node("auction_test_team", context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -99,8 +98,8 @@ class Team:
         return sum(1 for _, a in self.announcements if a.auction_id == auction_id)
 
     def close(self) -> None:
+        self.executor.shutdown()
         self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
 
 
 @pytest.fixture
@@ -110,8 +109,9 @@ def team() -> Iterator[tuple[Team, Any]]:
                "--params-file", str(REPO / "config" / "auction_node.yaml"),
                "-p", "robots_find_missing:=false", "-p", f"unconfirmed_report_timeout:={TIMEOUT}",
                "-p", "confirmations:=1", "-p", "confirmation_view_change:=0.0"]
-    process = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     team = Team()
+    process = subprocess.Popen(command, cwd=REPO, env=team.domain.environ(), stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
     try:
         team.structure_pub.publish(structure_to_msg(structure))
         team.spin_until(lambda: team.report_pub.get_subscription_count() > 0

@@ -3,7 +3,6 @@ what the driver nodes publish and publishes what they consume."""
 
 from __future__ import annotations
 
-import atexit
 import math
 import threading
 import time
@@ -76,7 +75,8 @@ class RosProbe:
     """rclpy Jazzy's executors are not safe against entities created or destroyed from another thread
     while they wait (ros2/rclpy#1385, #1589): the wait set can meet an action client being torn down
     and the executor's spin raises. The probe therefore keeps spinning past such an error, and the
-    entities tests are done with are destroyed only once the probe stops spinning (`retire`)."""
+    entities tests are done with are kept, not destroyed (`retire`). It spins in the session's domain
+    to the end of the session; its DDS participant is never deleted (`ros_helpers.isolated_domains`)."""
 
     def __init__(self) -> None:
         if not rclpy.ok():
@@ -86,23 +86,23 @@ class RosProbe:
         self.executor.add_node(self.node)
         self.spin_errors: list[str] = []
         self._retired: list[Any] = []
-        self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
-        while not self._stopping.is_set():
+        while True:
             try:
                 self.executor.spin_once(timeout_sec=0.1)
             except (ShutdownException, ExternalShutdownException):
                 return
             except Exception as error:  # see the class docstring
-                if self._stopping.is_set() or not rclpy.ok():
+                if not rclpy.ok():
                     return
                 self.spin_errors.append(f"{type(error).__name__}: {error}")
 
     def retire(self, entity: Any) -> None:
-        """Destroy `entity` (a client, subscription …) when the probe closes, not while it spins."""
+        """Keep `entity` (a client, subscription …) to the end of the session: destroyed while the probe
+        spins, it can break the spin."""
         self._retired.append(entity)
 
     def collect(self, message_type: Any, topic: str,
@@ -122,15 +122,6 @@ class RosProbe:
         if wait_for_subscriber and publisher.get_subscription_count() == 0:
             raise AssertionError(f"nobody subscribes {topic} after {wait_for_subscriber} s")
         return publisher
-
-    def close(self) -> None:
-        self._stopping.set()
-        self._thread.join(timeout=2.0)
-        self.executor.shutdown(timeout_sec=2.0)
-        for entity in self._retired:
-            entity.destroy()
-        self.node.destroy_node()
-        rclpy.try_shutdown()
 
 
 class OverheadCamera:
@@ -173,9 +164,8 @@ def probe_health() -> str:
 
 
 def shared_probe() -> RosProbe:
-    """The session's probe node (created on first use, shut down at exit)."""
+    """The session's probe node (created on first use; it spins to the end of the session)."""
     global _probe
     if _probe is None:
         _probe = RosProbe()
-        atexit.register(_probe.close)
     return _probe

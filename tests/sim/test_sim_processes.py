@@ -17,14 +17,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import rclpy
 from conftest import REPO, STRUCTURES, ros2_command, stop_node_process
 from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionClient
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from ros_helpers.isolated_domains import fresh_domain
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import String
@@ -36,7 +35,6 @@ from tiling_assembly_msgs.srv import SimSnapshot
 from tiling_ros.qos import SIM_EVENTS
 from tiling_ros.stamps import stamp_to_nanoseconds
 from tiling_sim.robot_motion import placement_phases
-from tiling_sim.ros_domain import claim_domain_id
 from tiling_sim.sim_settings import RobotBodySettings
 
 pytestmark = pytest.mark.ros
@@ -61,7 +59,7 @@ class Simulator:
     the test that watches them; `world_later`: the world is started by `start_world`."""
 
     def __init__(self, world_later: bool = False) -> None:
-        self.domain, self._domain_lock = claim_domain_id()
+        self.domain = fresh_domain()
         body = ("-p", "use_sim_time:=true")
         self.processes = {
             "sim_robot": self._start(_command("sim_robot", "/robot1", *body)),
@@ -69,8 +67,7 @@ class Simulator:
         }
         if not world_later:
             self.start_world()
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=self.domain)
+        self.context = self.domain.context
         self.node = Node("sim_processes_test", context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -89,9 +86,8 @@ class Simulator:
         self.processes["sim_world"] = self._start(_command("sim_world", None, "-p", "removals:=0"))
 
     def _start(self, command: list[str]) -> subprocess.Popen[str]:
-        env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain))
-        return subprocess.Popen(command, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True)
+        return subprocess.Popen(command, cwd=REPO, env=self.domain.environ(), stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True)
 
     def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -122,10 +118,9 @@ class Simulator:
         return handle
 
     def close(self) -> dict[str, str]:
+        self.executor.shutdown()
         self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
         outputs = {name: stop_node_process(process) for name, process in self.processes.items()}
-        self._domain_lock.close()
         return outputs
 
 

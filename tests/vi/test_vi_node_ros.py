@@ -15,15 +15,14 @@ from typing import Any
 
 import numpy as np
 import pytest
-import rclpy
 from conftest import stop_node_process
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+from ros_helpers.isolated_domains import fresh_domain
 from rosbags.rosbag2 import Reader
 from sensor_msgs.msg import PointCloud2, PointField
 from vi_helpers import REPO, SCANS, STRUCTURES, ros2_command, ros2_run, structure
@@ -42,11 +41,12 @@ STATE_NAMES = {1: "present", 2: "missing", 3: "occluded", 4: "misplaced"}
 
 
 @contextmanager
-def vi_node(*params: str) -> Iterator[subprocess.Popen[str]]:
+def vi_node(probe: Probe, *params: str) -> Iterator[subprocess.Popen[str]]:
     args = [ros2_command(), "run", "vi_node", "vi_node", "--ros-args", "-r", "__ns:=/vi"]
     for p in params:
         args += ["-p", p]
-    process = subprocess.Popen(args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(args, cwd=REPO, env=probe.domain.environ(), stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
     try:
         yield process
     finally:
@@ -57,8 +57,8 @@ class Probe:
     """A node of the test: records what vi_node publishes, publishes what the team would."""
 
     def __init__(self) -> None:
-        self.context = Context()
-        rclpy.init(context=self.context)
+        self.domain = fresh_domain()
+        self.context = self.domain.context
         self.node = Node("vi_probe", context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -96,7 +96,6 @@ class Probe:
     def close(self) -> None:
         self.executor.shutdown()
         self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
 
 
 @pytest.fixture
@@ -112,7 +111,7 @@ def offline(bag: str, *args: str) -> list[dict[str, Any]]:
     return [json.loads(line) for line in result.stdout.splitlines()]
 
 
-def replay(bag: str) -> subprocess.CompletedProcess[str]:
+def replay(probe: Probe, bag: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [
             ros2_command(),
@@ -131,6 +130,7 @@ def replay(bag: str) -> subprocess.CompletedProcess[str]:
             "1.5",
         ],
         cwd=REPO,
+        env=probe.domain.environ(),
         capture_output=True,
         text=True,
         timeout=60,
@@ -140,11 +140,11 @@ def replay(bag: str) -> subprocess.CompletedProcess[str]:
 def test_replayed_scans_give_the_same_states_as_the_offline_command(probe: Probe) -> None:
     bag = str(SCANS / "paper_vga")
     truth = read_truth(bag)
-    with vi_node(f"structure_file:={PAPER}", "mode:=paper", "fuse_scans:=false") as node:
+    with vi_node(probe, f"structure_file:={PAPER}", "mode:=paper", "fuse_scans:=false") as node:
         assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), (
             "vi_node did not start"
         )
-        replayed = replay(bag)
+        replayed = replay(probe, bag)
         assert replayed.returncode == 0, replayed.stderr
         assert "published 4 messages" in replayed.stdout
         assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
@@ -176,11 +176,11 @@ def test_default_mode_over_ros_fuses_scans_and_reports_the_misplaced_tile(probe:
     bag = str(SCANS / "paper_misplaced_qvga")
     truth = read_truth(bag)
     moved = truth["misplaced"][0]
-    with vi_node(f"structure_file:={PAPER}") as node:  # the defaults: default mode, fused
+    with vi_node(probe, f"structure_file:={PAPER}") as node:  # the defaults: default mode, fused
         assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), (
             "vi_node did not start"
         )
-        result = replay(bag)
+        result = replay(probe, bag)
         assert result.returncode == 0, result.stderr
         assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
         assert node.poll() is None
@@ -223,7 +223,7 @@ def test_bad_input_and_the_expected_structure_over_ros(probe: Probe) -> None:
     messages = bag_messages("paper_qvga")
     pose, cloud = messages[2][1], messages[3][1]  # the second view of the recording
     paper = structure()
-    with vi_node("mode:=paper", "sensor_reliability:=reliable", "min_support:=20") as node:
+    with vi_node(probe, "mode:=paper", "sensor_reliability:=reliable", "min_support:=20") as node:
         assert probe.spin_until(lambda: probe.node.count_subscribers("/vi/camera/depth/points") > 0, 30)
         time.sleep(0.5)
 
@@ -331,9 +331,9 @@ def test_other_robots_overhead_poses_are_followed_and_their_points_left_out(prob
     assert all("error" not in line for line in offline_states)
     assert offline_states[-1]["tiles"]["14"]["state"] == "missing"
     assert all(v["state"] != "missing" for k, v in offline_states[-1]["tiles"].items() if int(k) not in removed)
-    with vi_node(f"structure_file:={PAPER}", "other_robots:=robot1,robot2") as node:
+    with vi_node(probe, f"structure_file:={PAPER}", "other_robots:=robot1,robot2") as node:
         assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), "vi_node did not start"
-        result = replay(str(bag))
+        result = replay(probe, str(bag))
         assert result.returncode == 0, result.stderr
         assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
         assert node.poll() is None
@@ -348,7 +348,7 @@ def test_scans_are_inspected_while_the_simulated_clock_stands_still(probe: Probe
     comes after it, whatever the simulated clock does (here: no /clock at all)."""
     messages = bag_messages("paper_qvga")
     pose, cloud = messages[2][1], messages[3][1]
-    with vi_node(f"structure_file:={PAPER}", "use_sim_time:=true", "sensor_reliability:=reliable") as node:
+    with vi_node(probe, f"structure_file:={PAPER}", "use_sim_time:=true", "sensor_reliability:=reliable") as node:
         assert probe.spin_until(lambda: probe.node.count_subscribers("/vi/camera/depth/points") > 0, 30)
         time.sleep(0.5)
         probe.pose.publish(pose)
