@@ -18,7 +18,6 @@ import argparse
 import os
 import random
 import shutil
-import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -29,6 +28,7 @@ import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
 from rclpy.executors import SingleThreadedExecutor
 
+from tiling_assembly.interrupts import raise_if_signalled, raise_keyboard_interrupt_on_signals, signalled
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.team import TeamFileError, TeamNode, TeamRole, load_team
@@ -206,6 +206,7 @@ class Experiment:
             killed = False
             while True:
                 executor.spin_once(timeout_sec=0.05)
+                raise_if_signalled()  # a Ctrl-C that a binding swallowed, or turned into another error
                 wall = time.monotonic() - wall_start
                 dead = [n for n in group.dead() if n != self.config.kill_robot]
                 if dead:
@@ -349,7 +350,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
 
 def main(argv: list[str] | None = None) -> int:
     config = parse_args(argv)
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    raise_keyboard_interrupt_on_signals()  # also SIGTERM; both recorded in `signalled`
     domain, _lock = claim_domain_id()
     isolate(domain)
     network = None
@@ -377,15 +378,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --hosts netns: {error}", file=sys.stderr)
         return 2
     except RuntimeError as error:
+        if signalled.is_set():  # the Ctrl-C itself: pybind11 turns a KeyboardInterrupt raised while it
+            return _interrupted()  # converts a call's arguments into "Unable to convert call argument"
         print(f"error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("\ninterrupted: every node was stopped", file=sys.stderr)
-        return 130
+        return _interrupted()
     finally:
         rclpy.try_shutdown()
         if network is not None:
             network.close()
+
+
+def _interrupted() -> int:
+    print("\ninterrupted: every node was stopped", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":

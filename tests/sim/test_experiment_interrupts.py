@@ -1,0 +1,48 @@
+"""Ctrl-C that lands inside a C++ binding still ends an experiment as an interrupt."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from conftest import STRUCTURES
+
+from tiling_assembly import interrupts
+from tiling_sim import experiment
+
+
+@pytest.fixture(autouse=True)
+def _keep_pytests_own_signal_handlers(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(experiment, "raise_keyboard_interrupt_on_signals", lambda: None)
+
+
+def test_a_ctrl_c_a_binding_turned_into_another_error_still_counts_as_an_interrupt(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """pybind11 turns a KeyboardInterrupt raised while it converts a call's arguments into a
+    RuntimeError; the experiment reported "error: Unable to convert call argument '0' ..." and
+    exit code 2 for a Ctrl-C (tests/e2e, once in a fresh-clone run)."""
+
+    def interrupted_inside_a_binding(self: experiment.Experiment) -> None:
+        interrupts.signalled.set()
+        raise RuntimeError("Unable to convert call argument '0' to Python object")
+
+    monkeypatch.setattr(experiment.Experiment, "run", interrupted_inside_a_binding)
+    try:
+        code = experiment.main(["--structure", str(STRUCTURES / "paper_14.yaml"), "--report", str(tmp_path),
+                                "--trials", "1", "--quiet"])
+    finally:
+        interrupts.signalled.clear()
+    assert code == 130
+    assert "interrupted: every node was stopped" in capsys.readouterr().err
+
+
+def test_the_same_error_without_a_signal_is_reported_as_an_error(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    def broken(self: experiment.Experiment) -> None:
+        raise RuntimeError("something else broke")
+
+    monkeypatch.setattr(experiment.Experiment, "run", broken)
+    code = experiment.main(["--structure", str(STRUCTURES / "paper_14.yaml"), "--report", str(tmp_path),
+                            "--trials", "1", "--quiet"])
+    assert code == 2
+    assert capsys.readouterr().err.strip() == "error: something else broke"
