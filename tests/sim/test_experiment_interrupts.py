@@ -12,8 +12,13 @@ from tiling_sim import experiment
 
 
 @pytest.fixture(autouse=True)
-def _keep_pytests_own_signal_handlers(monkeypatch: pytest.MonkeyPatch) -> None:
+def _leave_the_test_process_as_it_is(monkeypatch: pytest.MonkeyPatch) -> None:
+    """pytest's signal handlers, its ROS domain and the session's default ROS context (another
+    test's probe uses it)."""
     monkeypatch.setattr(experiment, "raise_keyboard_interrupt_on_signals", lambda: None)
+    monkeypatch.setattr(experiment, "isolate", lambda domain: None)
+    monkeypatch.setattr(experiment.rclpy, "init", lambda **_: None)
+    monkeypatch.setattr(experiment.rclpy, "try_shutdown", lambda **_: None)
 
 
 def test_a_ctrl_c_a_binding_turned_into_another_error_still_counts_as_an_interrupt(
