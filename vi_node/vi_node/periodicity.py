@@ -50,7 +50,9 @@ def _candidate_shifts(kinds: list[tuple[object, ...]], xy: np.ndarray, within: f
                       shortest: float) -> list[np.ndarray]:
     """Distinct differences between origins of equal tiles, `shortest` to `within` m long."""
     n = min(len(xy), MAX_TILES)
-    same = np.array([[a == b for b in kinds[:n]] for a in kinds[:n]])
+    codes = {kind: code for code, kind in enumerate(dict.fromkeys(kinds[:n]))}
+    kind_codes = np.array([codes[kind] for kind in kinds[:n]])
+    same = kind_codes[:, None] == kind_codes[None, :]
     differences = (xy[None, :n] - xy[:n, None])[same]
     lengths = np.linalg.norm(differences, axis=1)
     differences = differences[(lengths >= shortest) & (lengths <= within)]
