@@ -81,7 +81,8 @@ UNDOCUMENTED: dict[tuple[str, str], str] = {
        for node in ("sim_world", "sim_robot", "sim_vi") for name in ("structure_file", "robot_names", "seed")
        if (node, name) != ("sim_vi", "structure_file")},  # sim_vi's file vi_node.yaml names it (vi_node's)
     **{("sim_world", name): "given by the experiment runner per trial (faults, start signal)"
-       for name in ("removals", "removal_window_start", "removal_window_end", "wait_for_start")},
+       for name in ("removals", "removal_window_start", "removal_window_end", "wait_for_start", "misplacements",
+                    "wrong_tiles")},
     ("sim_robot", "robot_size"): "the assembly robots' box; sim_vi and vi_node read it from config/vi_node.yaml, "
     "where it is vi_node's, and sim_robot is not given that file",
     ("sim_vi", "robots_in_view"): "a switch for tests of the simulated Kinect; the experiment always shows the robots",

@@ -8,6 +8,11 @@ its robot (real M3 driver or simulated robot), `/placement_reports`, `/auction/b
 process hangs or dies is noticed even while simulated time runs fast). It hears the auction node's
 `/auction/status` and starts no new tile while cut off from it (`team_contact`); a repeated
 announcement is answered with the same bid, a repeated award with the same acceptance.
+
+Beyond the paper: a placement refused because tiles lie wrong in the way is reported
+(OUTCOME_BLOCKED, a sensor as good as a scan) and the tile waits for their repair; a repair won in an
+auction (REASON_MISPLACED) takes tiles off with the robot's `remove_tile` action (reported
+OUTCOME_REMOVED) and places them back right.
 """
 
 from __future__ import annotations
@@ -22,14 +27,14 @@ from rclpy.action import ActionClient
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from assembly_node.bidding import compute_bid
+from assembly_node.bidding import compute_bid, compute_repair_bid
 from assembly_node.executor import Outcome, PlanExecutor, StepKind
 from assembly_node.team_contact import TeamContact
 from tiling_assembly.messages import pose_of, structure_from_msg
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.time_model import TimeModel
-from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.action import PlaceTile, RemoveTile
 from tiling_assembly_msgs.msg import (
     AssemblyPlan,
     AuctionAcceptance,
@@ -98,6 +103,8 @@ class AssemblyNode(Node):
         self.contact = TeamContact(self.robot_name, float(settings.auctioneer_timeout))
         self.bids_made: dict[int, AuctionBid] = {}  # auction id -> the bid sent
         self.acceptances: dict[int, AuctionAcceptance] = {}  # auction id -> the acceptance sent
+        self.repairs: dict[int, AuctionAnnouncement] = {}  # auction id -> a repair announcement bid in
+        self.standing_at: tuple[float, float] | None = None  # the overhead cameras' latest view of the base
 
         self.executor_state: PlanExecutor | None = None
         self.pending_plan: AssemblyPlan | None = None
@@ -120,7 +127,9 @@ class AssemblyNode(Node):
         topics.ANNOUNCEMENTS.subscribe(self, self.on_announcement)
         topics.AWARDS.subscribe(self, self.on_award)
         topics.AUCTIONEER_STATUS.subscribe(self, self.on_auctioneer_status)
+        self.create_subscription(PoseStamped, "overhead_pose", self.on_overhead_pose, 10)
         self.place_client = ActionClient(self, PlaceTile, "place_tile")
+        self.remove_client = ActionClient(self, RemoveTile, "remove_tile")
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(float(settings.heartbeat_period), self.publish_status, clock=steady)
@@ -194,6 +203,9 @@ class AssemblyNode(Node):
         self.executor_state.note_placed(msg.tile_id)
         self.step()
 
+    def on_overhead_pose(self, msg: PoseStamped) -> None:
+        self.standing_at = (msg.pose.position.x, msg.pose.position.y)
+
     def on_auctioneer_status(self, msg: AuctioneerStatus) -> None:
         self.contact.heard(time.monotonic(), msg.plan_revision, msg.lost_robots)
 
@@ -202,22 +214,34 @@ class AssemblyNode(Node):
             self.bid_pub.publish(self.bids_made[msg.auction_id])
             return
         state = self.executor_state
-        missing = msg.reason in (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING)
+        repair = msg.reason == AuctionAnnouncement.REASON_MISPLACED
+        # a tile lying wrong, and the tiles that come off with it, hold nothing up as planned
+        not_there = [msg.tile_id, *msg.resting_on_it] if repair else [msg.tile_id]
+        missing = repair or msg.reason in (AuctionAnnouncement.REASON_MISSING,
+                                           AuctionAnnouncement.REASON_FOUND_MISSING)
         if state is None:
             if missing:
-                self.early_news.append((False, msg.tile_id))
+                self.early_news += [(False, tile) for tile in not_there]
             return
         if missing:
-            state.note_missing(msg.tile_id)
+            for tile in not_there:
+                state.note_missing(tile)
         if not self.bid_in_auctions or self.robot_name not in msg.bidders:
             return
         if msg.tile_id not in state.structure.tiles:
             return
         tile_type = state.structure.tiles[msg.tile_id].type_name
-        bid = compute_bid(
-            state.structure, self.time_model, state.task(), msg.tile_id, self.cache_of(tile_type),
-            self.weight_supported, self.weight_distance,
-        )
+        if repair:
+            self.repairs[msg.auction_id] = msg
+            bid = compute_repair_bid(
+                state.structure, self.time_model, state.task(), msg.tile_id,
+                self.standing_at or self.cache_of(tile_type), self.weight_supported, self.weight_distance,
+            )
+        else:
+            bid = compute_bid(
+                state.structure, self.time_model, state.task(), msg.tile_id, self.cache_of(tile_type),
+                self.weight_supported, self.weight_distance,
+            )
         out = AuctionBid(
             auction_id=msg.auction_id, robot_name=self.robot_name, bid=bid.value, workload=bid.workload,
             supported_count=bid.supported_count, cache_distance=bid.cache_distance,
@@ -238,13 +262,20 @@ class AssemblyNode(Node):
             self.accept_pub.publish(self.acceptances[msg.auction_id])
             return
         received = time.time()
-        index = state.award(msg.tile_id)
+        repair = self.repairs.pop(msg.auction_id, None)
+        if repair is not None:
+            state.award_repair(msg.tile_id, list(repair.resting_on_it))
+            index = 0
+        else:
+            index = state.award(msg.tile_id)
         latency = 0.0
         if not is_zero(msg.detection_wall_stamp):
             latency = received - stamp_to_seconds(msg.detection_wall_stamp)
         self.accept(msg, latency)
+        what = (f"repairing it first: taking off {[*repair.resting_on_it, msg.tile_id]}" if repair is not None
+                else f"placing it at position {index} of my task")
         self.get_logger().info(
-            f"won tile {msg.tile_id} (auction {msg.auction_id}); placing it at position {index} of my task"
+            f"won tile {msg.tile_id} (auction {msg.auction_id}); {what}"
             + (f"; {latency * 1000:.1f} ms after detection" if latency else "")
         )
         self.step()
@@ -278,13 +309,20 @@ class AssemblyNode(Node):
         if decision.kind is StepKind.WAIT and decision.waiting_for != self.last_wait_logged:
             self.last_wait_logged = decision.waiting_for
             self.get_logger().info(f"tile {decision.tile_id} waits for supports {list(decision.waiting_for)}")
-        if decision.kind is not StepKind.PLACE:
+        if decision.kind not in (StepKind.PLACE, StepKind.REMOVE):
             return
         if not self.driver_ready():
             if self.server_found_at is None:
                 self.get_logger().warn(
                     "place_tile action server not available; is the robot driver running?", throttle_duration_sec=5.0
                 )
+            return
+        if decision.kind is StepKind.REMOVE:
+            if not self.remove_client.server_is_ready():
+                self.get_logger().warn("remove_tile action server not available: the repair waits",
+                                       throttle_duration_sec=5.0)
+                return
+            self.send_removal(decision.tile_id)
             return
         self.send_goal(decision.tile_id)
 
@@ -299,7 +337,8 @@ class AssemblyNode(Node):
 
     def watch_running_goal(self, tile_id: int) -> None:
         """A robot that stops answering must not hold its tile forever."""
-        if self.place_client.server_is_ready():
+        client = self.remove_client if self.executor_state and self.executor_state.removing else self.place_client
+        if client.server_is_ready():
             self.server_lost_since = None
         elif self.server_lost_since is None:
             self.server_lost_since = time.monotonic()
@@ -312,7 +351,10 @@ class AssemblyNode(Node):
         self.goal_handle = None
         self.server_lost_since = None
         why = "the robot stopped answering" if lost else f"no result within {self.action_timeout:.0f} s"
-        self.on_placement_done(tile_id, False, why, ())
+        if self.executor_state is not None and self.executor_state.removing:
+            self.on_removal_done(tile_id, False, why, ())
+        else:
+            self.on_placement_done(tile_id, False, why, ())
 
     def send_goal(self, tile_id: int) -> None:
         state = self.executor_state
@@ -331,35 +373,84 @@ class AssemblyNode(Node):
         future = self.place_client.send_goal_async(goal)
         future.add_done_callback(lambda f, t=tile_id: self.on_goal_response(t, f))
 
+    def send_removal(self, tile_id: int) -> None:
+        """Take `tile_id` off the structure (a repair), to this robot's cache of its type."""
+        state = self.executor_state
+        assert state is not None
+        tile = state.structure.tiles[tile_id]
+        goal = RemoveTile.Goal(tile_id=tile_id, tile_type=tile.type_name)
+        goal.pose.header.frame_id = state.structure.frame_id
+        goal.pose.header.stamp = self.get_clock().now().to_msg()
+        goal.pose.pose = pose_of(tile)
+        drop_off = self.cache_of(tile.type_name) or (0.0, 0.0)
+        goal.drop_off = Point(x=drop_off[0], y=drop_off[1], z=0.0)
+        state.start_removal(tile_id)
+        self.goal_sent_at = self.now()
+        self.get_logger().info(f"taking tile {tile_id} off the structure, attempt {state.removal_attempts[tile_id]}")
+        future = self.remove_client.send_goal_async(goal)
+        future.add_done_callback(lambda f, t=tile_id: self.on_goal_response(t, f))
+
     def on_goal_response(self, tile_id: int, future) -> None:  # type: ignore[no-untyped-def]
-        if self.executor_state is None or self.executor_state.in_flight != tile_id:
+        state = self.executor_state
+        if state is None or state.in_flight != tile_id:
             return  # given up on already
         handle = future.result()
         if handle is None or not handle.accepted:
-            self.on_placement_done(tile_id, False, "the robot refused the goal", ())
+            done = self.on_removal_done if state.removing else self.on_placement_done
+            done(tile_id, False, "the robot refused the goal", ())
             return
         self.goal_handle = handle
         handle.get_result_async().add_done_callback(lambda f, t=tile_id: self.on_result(t, f))
 
     def on_result(self, tile_id: int, future) -> None:  # type: ignore[no-untyped-def]
-        if self.executor_state is None or self.executor_state.in_flight != tile_id:
+        state = self.executor_state
+        if state is None or state.in_flight != tile_id:
             return  # given up on already
         self.goal_handle = None
         response = future.result()
         result = response.result
+        reason = result.message or f"goal status {response.status}"
+        if state.removing:
+            ok = response.status == GoalStatus.STATUS_SUCCEEDED and result.error_code in (
+                RemoveTile.Result.SUCCEEDED, RemoveTile.Result.ALREADY_ABSENT)
+            self.on_removal_done(tile_id, ok, reason, tuple(result.resting_on_it))
+            return
         ok = response.status == GoalStatus.STATUS_SUCCEEDED and result.error_code in (
             PlaceTile.Result.SUCCEEDED,
             PlaceTile.Result.ALREADY_PRESENT,
         )
         absent = tuple(result.missing_supports) if result.error_code == PlaceTile.Result.FAILED_PRECONDITION else ()
-        self.on_placement_done(tile_id, ok, result.message or f"goal status {response.status}", absent)
+        wrong = tuple(result.wrong_tiles) if result.error_code == PlaceTile.Result.FAILED_BLOCKED else ()
+        self.on_placement_done(tile_id, ok, reason, absent, wrong)
 
-    def on_placement_done(self, tile_id: int, success: bool, reason: str, absent: tuple[int, ...]) -> None:
+    def on_removal_done(self, tile_id: int, success: bool, reason: str, resting_on_it: tuple[int, ...]) -> None:
+        state = self.executor_state
+        assert state is not None
+        attempts = state.removal_attempts.get(tile_id, 1)
+        outcome = state.finish_removal(tile_id, success, resting_on_it)
+        if outcome is Outcome.REMOVED:
+            self.publish_report(tile_id, PlacementReport.OUTCOME_REMOVED, attempts, "taken off for a repair")
+            self.get_logger().info(f"took tile {tile_id} off the structure")
+        elif outcome is Outcome.RETRY:
+            self.retry_after = self.now() + (0.0 if resting_on_it else self.retry_delay)
+            self.get_logger().warn(f"taking tile {tile_id} off failed ({reason}); trying again")
+        else:
+            self.publish_report(tile_id, PlacementReport.OUTCOME_FAILED, attempts, f"repair given up: {reason}")
+            self.get_logger().error(f"gave up the repair of tile {tile_id} after {attempts} attempts: {reason}")
+        self.publish_status()
+        self.step()
+
+    def on_placement_done(
+        self, tile_id: int, success: bool, reason: str, absent: tuple[int, ...], wrong: tuple[int, ...] = ()
+    ) -> None:
         state = self.executor_state
         assert state is not None
         attempts = state.attempts.get(tile_id, 1)
-        outcome = state.finish(tile_id, success, absent)
-        if outcome is Outcome.PLACED:
+        outcome = state.finish(tile_id, success, absent, wrong)
+        if outcome is Outcome.WAITS_FOR_REPAIR:
+            self.publish_report(tile_id, PlacementReport.OUTCOME_BLOCKED, attempts, reason, wrong_tiles=wrong)
+            self.get_logger().warn(f"tile {tile_id} waits for the repair of {', '.join(map(str, wrong))} ({reason})")
+        elif outcome is Outcome.PLACED:
             self.publish_report(tile_id, PlacementReport.OUTCOME_PLACED, attempts, "")
             self.get_logger().info(f"placed tile {tile_id}")
         elif outcome is Outcome.BLOCKED:
@@ -377,13 +468,14 @@ class AssemblyNode(Node):
         self.step()
 
     def publish_report(
-        self, tile_id: int, outcome: int, attempts: int, reason: str, absent: tuple[int, ...] = ()
+        self, tile_id: int, outcome: int, attempts: int, reason: str, absent: tuple[int, ...] = (),
+        wrong_tiles: tuple[int, ...] = (),
     ) -> None:
         state = self.executor_state
         assert state is not None
         report = PlacementReport(
             robot_name=self.robot_name, tile_id=tile_id, outcome=outcome, attempts=attempts, reason=reason,
-            missing_supports=list(absent),
+            missing_supports=list(absent), wrong_tiles=list(wrong_tiles),
         )
         report.header.stamp = self.get_clock().now().to_msg()
         report.header.frame_id = state.structure.frame_id
@@ -404,6 +496,7 @@ class AssemblyNode(Node):
                 StepKind.WAIT: RobotStatus.WAITING,
                 StepKind.BUSY: RobotStatus.PLACING,
                 StepKind.PLACE: RobotStatus.WAITING,
+                StepKind.REMOVE: RobotStatus.WAITING,
                 StepKind.DONE: RobotStatus.DONE,
             }[kind]
             status.current_tile = state.in_flight

@@ -7,6 +7,10 @@ tiles the missing tile directly supports, d_ij the floor distance from the robot
 tile's type to the tile (m). A (s per supported tile) and B (s per metre) weigh them; the lowest
 bid wins. A robot whose own tiles wait for the missing tile (large c_i) and whose cache is near
 (small d_ij) bids low.
+
+Beyond the paper, a repair of a tile lying wrong is bid for with the same formula, d_ij measured
+from where the robot stands now (its overhead pose; its cache when it has not heard one): the robot
+must go to the wrong tile first, and only then to a cache.
 """
 
 from __future__ import annotations
@@ -51,3 +55,16 @@ def compute_bid(
         distance = math.hypot(centre[0] - cache[0], centre[1] - cache[1])
     value = workload - weight_supported * supported + weight_distance * distance
     return Bid(workload=workload, supported_count=supported, cache_distance=distance, value=value)
+
+
+def compute_repair_bid(
+    structure: Structure,
+    time_model: TimeModel,
+    remaining: Sequence[int],
+    tile_id: int,
+    standing_at: tuple[float, float] | None,
+    weight_supported: float,
+    weight_distance: float,
+) -> Bid:
+    """The bid for repairing `tile_id`: as `compute_bid`, the distance from `standing_at` (x, y)."""
+    return compute_bid(structure, time_model, remaining, tile_id, standing_at, weight_supported, weight_distance)

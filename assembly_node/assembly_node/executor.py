@@ -11,6 +11,12 @@ from the order when the next planned tile is blocked and a later one is not (nev
 tile's supports are placed). Tiles won in auctions make this necessary: a strict order can
 deadlock two robots each waiting for a tile the other holds further down its list. `strict_order`
 restores the paper's behaviour of waiting on the next planned tile.
+
+Beyond the paper (its future work, repairing wrong placements): a tile found lying wrong in the
+way, or under the tile to place, keeps that tile waiting until the wrong one is placed again right.
+A repair won in an auction (`award_repair`) takes tiles off first (those resting on the wrong tile,
+top down, then the wrong tile, as `tiling_assembly.repair` plans it) and puts the right tile and the
+others back before anything else.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from tiling_assembly.structure import Structure
 
 class StepKind(Enum):
     PLACE = "place"  # start the place action for `tile_id`
+    REMOVE = "remove"  # start the remove action for `tile_id` (a repair)
     WAIT = "wait"  # the next tiles wait for supports (`waiting_for`)
     BUSY = "busy"  # a place action is under way
     DONE = "done"  # nothing left to place
@@ -44,6 +51,8 @@ class Outcome(Enum):
     RETRY = "retry"
     GAVE_UP = "gave_up"
     BLOCKED = "blocked"  # supports claimed placed are not there: keep the tile, wait for them
+    WAITS_FOR_REPAIR = "waits for repair"  # tiles lying wrong are in the way: keep the tile, wait for them
+    REMOVED = "removed"  # a repair took the tile off
 
 
 @dataclass
@@ -58,8 +67,12 @@ class PlanExecutor:
     remaining: list[int] = field(default_factory=list)  # to place, in order
     placed: set[int] = field(default_factory=set)  # placed by anyone, not reported missing
     placed_by_me: list[int] = field(default_factory=list)  # in placement order
-    in_flight: int = 0  # tile of the running place action, 0 when none
+    in_flight: int = 0  # tile of the running place (or remove) action, 0 when none
+    removing: bool = False  # the running action takes `in_flight` off
     attempts: dict[int, int] = field(default_factory=dict)
+    removal_attempts: dict[int, int] = field(default_factory=dict)
+    to_take_off: list[int] = field(default_factory=list)  # a repair's removals, in order
+    blocked_by: dict[int, set[int]] = field(default_factory=dict)  # tile -> tiles lying wrong in its way
 
     def adopt_plan(self, revision: int, tiles: Sequence[int]) -> bool:
         """Take this robot's tiles of plan `revision`; older or repeated revisions are ignored."""
@@ -74,6 +87,10 @@ class PlanExecutor:
         self.placed.add(tile_id)
         if tile_id in self.remaining:  # e.g. reassigned and placed by another robot
             self.remaining.remove(tile_id)
+        for waiting in list(self.blocked_by):
+            self.blocked_by[waiting].discard(tile_id)
+            if not self.blocked_by[waiting]:
+                del self.blocked_by[waiting]
 
     def note_missing(self, tile_id: int) -> None:
         """`tile_id` was placed but is physically missing: it no longer supports anything."""
@@ -100,6 +117,21 @@ class PlanExecutor:
         self.attempts.pop(tile_id, None)
         return index
 
+    def award_repair(self, tile_id: int, resting_on_it: Sequence[int]) -> None:
+        """This robot won the repair of `tile_id`, with `resting_on_it` (top down) on it: take those
+        and the wrong tile off, then place the right tile and put the others back, before anything else."""
+        for tile in (*resting_on_it, tile_id):
+            if tile not in self.to_take_off:
+                self.to_take_off.append(tile)
+        self.put_back_first([tile_id, *reversed(resting_on_it)])
+
+    def put_back_first(self, tiles: Sequence[int]) -> None:
+        """`tiles` (bottom up) come off the structure and go back first, before the rest of the task."""
+        self.placed.difference_update(tiles)
+        self.remaining = list(tiles) + [t for t in self.remaining if t not in tiles]
+        for tile in tiles:
+            self.attempts.pop(tile, None)
+
     def release(self, tile_ids: Iterable[int]) -> None:
         """Drop tiles from the task (reassigned elsewhere)."""
         drop = set(tile_ids)
@@ -115,14 +147,17 @@ class PlanExecutor:
             return Step(StepKind.IDLE)
         if self.in_flight:
             return Step(StepKind.BUSY, self.in_flight)
+        if self.to_take_off:
+            return Step(StepKind.REMOVE, self.to_take_off[0])
         if not self.remaining:
             return Step(StepKind.DONE)
         candidates = self.remaining[:1] if self.strict_order else self.remaining
         for tile_id in candidates:
-            if not self.blocking_supports(tile_id):
+            if not self.blocking_supports(tile_id) and tile_id not in self.blocked_by:
                 return Step(StepKind.PLACE, tile_id)
         first = self.remaining[0]
-        return Step(StepKind.WAIT, first, self.blocking_supports(first))
+        waiting_for = self.blocking_supports(first) or tuple(sorted(self.blocked_by.get(first, ())))
+        return Step(StepKind.WAIT, first, waiting_for)
 
     def start(self, tile_id: int) -> None:
         """The place action for `tile_id` was sent."""
@@ -132,16 +167,63 @@ class PlanExecutor:
         self.in_flight = tile_id
         self.attempts[tile_id] = self.attempts.get(tile_id, 0) + 1
 
-    def finish(self, tile_id: int, success: bool, missing_supports: Iterable[int] = ()) -> Outcome:
+    def start_removal(self, tile_id: int) -> None:
+        """The remove action for `tile_id`, the first of the repair's removals, was sent."""
+        if not self.to_take_off or self.to_take_off[0] != tile_id:
+            raise ValueError(f"tile {tile_id} is not the next to take off in {self.robot_name}'s repair")
+        self.in_flight = tile_id
+        self.removing = True
+        self.removal_attempts[tile_id] = self.removal_attempts.get(tile_id, 0) + 1
+
+    def finish_removal(self, tile_id: int, success: bool, resting_on_it: Sequence[int] = ()) -> Outcome:
+        """The remove action for `tile_id` ended: removed, to be retried, or given up (the repair is
+        dropped; the wrong tile goes back to the team as a tile given up).
+
+        Tiles found resting on it (placed after the repair was planned) come off first and go back after.
+        """
+        if tile_id != self.in_flight or not self.removing:
+            raise ValueError(f"tile {tile_id} is not the one being taken off ({self.in_flight})")
+        self.in_flight, self.removing = 0, False
+        if success:
+            self.to_take_off.remove(tile_id)
+            self.placed.discard(tile_id)
+            self.removal_attempts.pop(tile_id, None)
+            return Outcome.REMOVED
+        on_top = [t for t in resting_on_it if t not in self.to_take_off]
+        if on_top:
+            self.to_take_off[:0] = on_top
+            position = self.remaining.index(tile_id) + 1 if tile_id in self.remaining else 0
+            self.remaining[position:position] = [t for t in reversed(on_top) if t not in self.remaining]
+            self.placed.difference_update(on_top)
+            self.removal_attempts[tile_id] -= 1
+            return Outcome.RETRY
+        if self.removal_attempts.get(tile_id, 0) < self.max_attempts:
+            return Outcome.RETRY
+        self.removal_attempts.pop(tile_id, None)
+        repair = set(self.to_take_off)
+        self.to_take_off.clear()
+        self.remaining = [t for t in self.remaining if t not in repair]
+        return Outcome.GAVE_UP
+
+    def finish(
+        self, tile_id: int, success: bool, missing_supports: Iterable[int] = (), wrong_tiles: Iterable[int] = ()
+    ) -> Outcome:
         """The place action for `tile_id` ended: placed, to be retried, given up, or blocked.
 
-        A placement refused because supports are not physically there is not the robot's fault
-        and not the tile's: the tile stays first in the task, the attempt does not count, and the
-        robot waits until those supports are reported placed again.
+        A placement refused because supports are not physically there, or because tiles lie wrong in
+        its way, is not the robot's fault and not the tile's: the tile stays first in the task, the
+        attempt does not count, and the robot waits until those tiles are reported placed again.
         """
-        if tile_id != self.in_flight:
+        if tile_id != self.in_flight or self.removing:
             raise ValueError(f"tile {tile_id} is not the one being placed ({self.in_flight})")
         self.in_flight = 0
+        wrong = set(wrong_tiles)
+        if not success and wrong:
+            self.placed -= wrong
+            self.blocked_by[tile_id] = wrong
+            self.attempts[tile_id] = self.attempts.get(tile_id, 1) - 1
+            self.remaining.insert(0, tile_id)
+            return Outcome.WAITS_FOR_REPAIR
         if success:
             self.placed.add(tile_id)
             self.placed_by_me.append(tile_id)
@@ -161,4 +243,5 @@ class PlanExecutor:
 
     def task(self) -> list[int]:
         """The tiles still to place, the one under way first."""
-        return ([self.in_flight] if self.in_flight else []) + list(self.remaining)
+        placing = [self.in_flight] if self.in_flight and not self.removing else []
+        return placing + list(self.remaining)

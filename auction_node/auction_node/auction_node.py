@@ -14,10 +14,16 @@ is auctioned among the others, and a support a robot found physically absent whe
 missing just as if a scan had said so. Over a lossy link, announcements and awards are repeated
 until answered (`delivery`), and `/auction/status` tells robots the plan in force and who is
 counted lost (`assembly_node.team_contact`).
+
+Beyond the paper too (its future work): a placed tile confirmed lying wrong (MISPLACED from two
+camera positions, `mismatch.MismatchDetector.flagged`, or a robot that found it in the way,
+OUTCOME_BLOCKED) is auctioned as a repair (REASON_MISPLACED) with the placed tiles resting on it,
+which `tiling_assembly.repair` orders; they are no longer placed until the winner puts them back.
 """
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from dataclasses import dataclass
@@ -31,6 +37,7 @@ from auction_node.delivery import AnnouncementRepeater, AwardDelivery
 from auction_node.liveness import Liveness
 from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
 from tiling_assembly.messages import pose_of, structure_from_msg
+from tiling_assembly.repair import plan_repair
 from tiling_assembly.scan_freshness import RepeatFilter
 from tiling_assembly.structure import Structure as StructureModel
 from tiling_assembly.structure import StructureError
@@ -59,6 +66,7 @@ REASONS = {
     AuctionAnnouncement.REASON_ROBOT_LOST: "its robot was lost",
     AuctionAnnouncement.REASON_GAVE_UP: "given up",
     AuctionAnnouncement.REASON_FOUND_MISSING: "missing, found by a robot",
+    AuctionAnnouncement.REASON_MISPLACED: "lying wrong: repair",
 }
 
 
@@ -127,6 +135,7 @@ class AuctionNode(Node):
         self.plan_revision = 0
         self.in_lost_hands: dict[str, tuple[int, float]] = {}  # lost robot -> (tile in its hands, node time)
         self.lost_tile_grace = float(settings.lost_tile_grace)
+        self.under_repair: set[int] = set()  # tiles auctioned for repair and not yet placed again
 
         self.announce_pub = topics.ANNOUNCEMENTS.publisher(self)
         self.award_pub = topics.AWARDS.publisher(self)
@@ -159,6 +168,7 @@ class AuctionNode(Node):
     def announce(self, tile_id: int, reason: int, exclude: str = "") -> None:
         if self.structure is None or tile_id not in self.structure.tiles:
             return
+        resting = self.resting_on(tile_id) if reason == AuctionAnnouncement.REASON_MISPLACED else []
         invited = [r for r in self.liveness.alive() if r != exclude] or self.liveness.alive()
         if not invited:
             self.decide(f"tile {tile_id} ({REASONS[reason]}): no robot alive to bid; retrying later", error=True)
@@ -172,8 +182,10 @@ class AuctionNode(Node):
         tile = self.structure.tiles[tile_id]
         msg = AuctionAnnouncement(
             auction_id=auction.auction_id, tile_id=tile_id, tile_type=tile.type_name, reason=reason,
-            bidders=sorted(auction.invited),
+            bidders=sorted(auction.invited), resting_on_it=resting,
         )
+        for above in resting:  # they come off with it
+            self.detector.unplaced(above)
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.structure.frame_id
         msg.tile_pose = pose_of(tile)
@@ -181,10 +193,27 @@ class AuctionNode(Node):
         self.announce_pub.publish(msg)
         self.announcements[auction.auction_id] = msg
         self.repeater.sent(auction.auction_id, time.monotonic())
+        taken_off = f"; {', '.join(map(str, resting))} rest on it and come off first" if resting else ""
         self.decide(
-            f"auction {auction.auction_id} opened for tile {tile_id} ({tile.type_name}, {REASONS[reason]}); "
+            f"auction {auction.auction_id} opened for tile {tile_id} ({tile.type_name}, {REASONS[reason]}{taken_off}); "
             f"bidders: {', '.join(sorted(auction.invited))}"
         )
+
+    def resting_on(self, tile_id: int) -> list[int]:
+        """The placed tiles resting on `tile_id`, directly or through others, top down (`repair`)."""
+        assert self.structure is not None
+        placed = {*self.detector.placed_tiles(), tile_id}
+        return list(plan_repair(self.structure, tile_id, placed).taken_off)
+
+    def repair(self, tile_id: int, why: str) -> None:
+        """Auction the repair of `tile_id`, found lying wrong, unless one is under way."""
+        if tile_id in self.under_repair:
+            return
+        self.under_repair.add(tile_id)
+        self.detector.unplaced(tile_id)
+        self.detected_wall[tile_id] = time.time()
+        self.decide(f"tile {tile_id} lies wrong ({why}): repairing it")
+        self.announce(tile_id, AuctionAnnouncement.REASON_MISPLACED)
 
     # --- inputs -------------------------------------------------------------------------------
     def on_structure(self, msg: Structure) -> None:
@@ -196,8 +225,15 @@ class AuctionNode(Node):
     def on_report(self, msg: PlacementReport) -> None:
         if msg.outcome == PlacementReport.OUTCOME_PLACED:
             self.detector.placed(msg.tile_id, stamp_to_seconds(msg.header.stamp))
+            self.under_repair.discard(msg.tile_id)
+        elif msg.outcome == PlacementReport.OUTCOME_REMOVED:
+            self.detector.unplaced(msg.tile_id)
+        elif msg.outcome == PlacementReport.OUTCOME_BLOCKED:
+            for wrong in msg.wrong_tiles:
+                self.repair(wrong, f"{msg.robot_name} found it in the way when placing tile {msg.tile_id}")
         elif msg.outcome == PlacementReport.OUTCOME_FAILED:
             self.detector.unplaced(msg.tile_id)
+            self.under_repair.discard(msg.tile_id)  # a robot placing it will find it in the way again
             self.decide(f"{msg.robot_name} gave up tile {msg.tile_id}: {msg.reason}", error=True)
             self.announce(msg.tile_id, AuctionAnnouncement.REASON_GAVE_UP, exclude=msg.robot_name)
         elif msg.outcome == PlacementReport.OUTCOME_SUPPORT_MISSING:
@@ -230,10 +266,19 @@ class AuctionNode(Node):
         fresh = self.repeats.fresh_states(msg.states)
         sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states if s.tile_id in fresh}
         view = (msg.camera_pose.position.x, msg.camera_pose.position.y)
-        for tile_id in self.detector.sensed(sensing, stamp_to_seconds(msg.header.stamp), view):
+        at = stamp_to_seconds(msg.header.stamp)
+        for tile_id in self.detector.sensed(sensing, at, view):
             self.detected_wall[tile_id] = detected
             self.decide(f"tile {tile_id} was placed but the scan says missing (q * q^s = -1)")
             self.announce(tile_id, AuctionAnnouncement.REASON_MISSING)
+        verdicts = {s.tile_id: s.state == TileState.MISPLACED for s in msg.states
+                    if s.tile_id in fresh and s.state in (TileState.PRESENT, TileState.MISPLACED)}
+        offsets = {s.tile_id: s for s in msg.states}
+        for tile_id in self.detector.flagged(verdicts, at, view):
+            found = offsets[tile_id]
+            self.repair(tile_id, f"scans from {self.detector.confirmations} camera positions say misplaced, last "
+                                 f"off by {100 * (found.offset_x ** 2 + found.offset_y ** 2) ** 0.5:.1f} cm, "
+                                 f"{math.degrees(found.offset_yaw):+.0f} deg")
 
     def on_plan(self, msg: AssemblyPlan) -> None:
         self.plan_revision = max(self.plan_revision, msg.revision)
@@ -304,7 +349,8 @@ class AuctionNode(Node):
 
     def publish_award(self, award: Award, reason: int) -> None:
         self.announcements.pop(award.auction_id, None)
-        missing = (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING)
+        missing = (AuctionAnnouncement.REASON_MISSING, AuctionAnnouncement.REASON_FOUND_MISSING,
+                   AuctionAnnouncement.REASON_MISPLACED)
         detected = self.detected_wall.pop(award.tile_id, 0.0) if reason in missing else 0.0
         self.award_pub.publish(self.award_message(award, detected))
         self.decide(award.decision, error=not award.winner)

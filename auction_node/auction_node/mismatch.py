@@ -17,6 +17,11 @@ arrive after some processing time, possibly after the report of a placement they
 
 Beyond the paper, a robot refused a placement because a support is not physically there is a
 second sensor: that support is missing too, without waiting for the VI robot to look.
+
+Beyond the paper too (its future work): a placed tile that scans call MISPLACED (seen, but off its
+planned pose, or of another shape) is confirmed as a missing one is, by `confirmations` scans from
+camera positions `min_view_change` apart with no present verdict between them (`flagged`), and then
+goes to repair.
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ class MismatchDetector:
     q: dict[int, int] = field(default_factory=dict)
     q_sensed: dict[int, int] = field(default_factory=dict)
     missing_streak: dict[int, list[View | None]] = field(default_factory=dict)  # views that called it missing
+    misplaced_streak: dict[int, list[View | None]] = field(default_factory=dict)  # views that called it misplaced
     placed_at: dict[int, float] = field(default_factory=dict)  # s, time of the latest placement
 
     def placed(self, tile_id: int, at: float = -math.inf) -> None:
@@ -49,11 +55,36 @@ class MismatchDetector:
         self.placed_at[tile_id] = at
         self.q_sensed[tile_id] = UNDETERMINED
         self.missing_streak.pop(tile_id, None)
+        self.misplaced_streak.pop(tile_id, None)
 
     def unplaced(self, tile_id: int) -> None:
-        """`tile_id` is known not to be in the structure (found missing, or given up)."""
+        """`tile_id` is known not to be in the structure as planned (found missing or lying wrong, taken
+        off, or given up)."""
         self.q[tile_id] = 0
         self.missing_streak.pop(tile_id, None)
+        self.misplaced_streak.pop(tile_id, None)
+
+    def flagged(self, verdicts: Mapping[int, bool], at: float = math.inf, view: View | None = None) -> list[int]:
+        """Take a scan's verdicts on placed tiles (tile id -> True: misplaced, False: present) taken at
+        `at` from `view`; other verdicts are left out (they neither confirm nor clear).
+
+        Returns the tiles now confirmed lying wrong; they are no longer placed (q_i = 0) until a robot
+        reports them placed again.
+        """
+        found = []
+        for tile_id, misplaced in verdicts.items():
+            if at < self.placed_at.get(tile_id, -math.inf) or self.q.get(tile_id, 0) != 1:
+                continue
+            if not misplaced:
+                self.misplaced_streak.pop(tile_id, None)
+                continue
+            views = self.misplaced_streak.setdefault(tile_id, [])
+            if self._new_view(views, view):
+                views.append(view)
+            if len(views) >= self.confirmations:
+                found.append(tile_id)
+                self.unplaced(tile_id)
+        return sorted(found)
 
     def sensed(self, states: Mapping[int, int], at: float = math.inf, view: View | None = None) -> list[int]:
         """Take the sensing vector of a scan taken at `at` from camera position `view` (tile id -> 1,

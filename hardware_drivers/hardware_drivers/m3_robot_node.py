@@ -1,5 +1,6 @@
 """`m3_robot`: serves ``place_tile`` (tiling_assembly_msgs/action/PlaceTile) for one M3 robot by
-composing its device nodes (paper section 3.1), in the robot's namespace.
+composing its device nodes (paper section 3.1), in the robot's namespace; and ``remove_tile``
+(RemoveTile: take a misplaced tile off the structure, beyond the paper; see remove_tile_mission).
 
     ros2 run hardware_drivers m3_robot --ros-args -r __ns:=/robot1 \\
         --params-file config/hardware_drivers.yaml --params-file config/crustcrawler_arm.yaml
@@ -9,16 +10,17 @@ processes (``create_base``, ``crustcrawler_arm``, ``hokuyo_urg``), each owning i
 the real robot that is what a user wants: every device can be started, restarted, watched
 (``ros2 topic echo /robot1/scan``) and used alone while this node is down or being debugged; a
 crash or a reconnect in one device does not take the others down; and the action semantics do not
-depend on serial details, so the simulated robots serve the same action.
+depend on serial details, so the simulated robots serve the same actions.
 
 Uses: ``odom`` and ``overhead_pose`` (map pose of base_link from the overhead cameras) to drive
-with ``cmd_vel``; ``scan`` to find the tile at its cache; ``joint_states`` and
+with ``cmd_vel``; ``scan`` to find the tile at its cache or on the structure; ``joint_states`` and
 ``joint_trajectory`` for the arm; ``bumper``/``wheel_drop`` and ``/diagnostics`` of its own
 devices to stop with a clear failure. Tile footprints come from ``/structure`` (latched) or the
 ``structure_file`` parameter. Feedback carries the action's phases; a failure ends with the
-action's error code and one line; a cancel stops the wheels at once. One placement at a time: the
-same goal sent again while it runs (by a client that missed the goal response) follows it, with its
-feedback, result and cancel, rather than placing the tile twice; any other goal meanwhile is refused.
+action's error code and one line; a cancel stops the wheels at once. One goal at a time across both
+actions (one arm): a goal of either while another runs is refused, except the same goal sent again
+(by a client that missed the goal response), which follows the one under way, with its feedback,
+result and cancel, rather than handling the tile twice.
 """
 
 from __future__ import annotations
@@ -26,12 +28,14 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import PoseStamped, Twist
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
@@ -61,16 +65,17 @@ from hardware_drivers.place_tile_mission import (
     MissionConfig,
     MissionResult,
     Outcome,
-    Phase,
+    PhaseFeedback,
     PlaceGoal,
     PlaceTileMission,
 )
 from hardware_drivers.planar_pose import Pose2D
+from hardware_drivers.remove_tile_mission import RemovalOutcome, RemovalResult, RemoveGoal, RemoveTileMission
 from hardware_drivers.tile_localization import LocalizationParams, footprint_of
 from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.structure import StructureError, TileType
 from tiling_assembly.structure_file import load_structure
-from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.action import PlaceTile, RemoveTile
 from tiling_assembly_msgs.msg import Structure as StructureMsg
 from tiling_ros.parameters import declare_settings, setting
 from tiling_ros.qos import DIAGNOSTICS, LATCHED
@@ -144,8 +149,8 @@ class M3RobotNode(Node):
         self._bumper = False
         self._wheel_drop = False
         self._device_status: dict[str, tuple[int, str, dict[str, str]]] = {}
-        self.slot = GoalSlot()
-        self._placement: _Placement | None = None  # the latest placement (under way or ended)
+        self.slot = GoalSlot()  # shared by both actions: one arm
+        self._goal_run: _GoalRun | None = None  # the latest goal of either action (under way or ended)
         self.stopping = threading.Event()  # the node is stopping: a mission under way ends as canceled
         self.cmd_vel = self.create_publisher(Twist, "cmd_vel", 10)
         self.trajectory = self.create_publisher(JointTrajectory, "joint_trajectory", 10)
@@ -167,8 +172,13 @@ class M3RobotNode(Node):
             self, PlaceTile, "place_tile", execute_callback=self.execute, goal_callback=self.on_goal,
             cancel_callback=self.on_cancel, callback_group=group,
         )
+        self.removal_server = ActionServer(
+            self, RemoveTile, "remove_tile", execute_callback=self.execute_removal, goal_callback=self.on_goal,
+            cancel_callback=self.on_cancel, callback_group=group,
+        )
         self.get_logger().info(
-            f"serving {self.resolve_topic_name('place_tile')}; tile types known: "
+            f"serving {self.resolve_topic_name('place_tile')} and {self.resolve_topic_name('remove_tile')}; "
+            "tile types known: "
             f"{', '.join(sorted(self.tile_types)) or 'none yet (waiting for /structure)'}"
         )
 
@@ -333,15 +343,19 @@ class M3RobotNode(Node):
             return f"crustcrawler_arm: no joint_states for {self.device_timeout:g} s (arm not answering?)"
         return None
 
-    # ------------------------------------------------------------------ the action
-    def on_goal(self, goal: PlaceTile.Goal) -> GoalResponse:
+    # ------------------------------------------------------------------ the actions
+    def on_goal(self, goal: PlaceTile.Goal | RemoveTile.Goal) -> GoalResponse:
+        """Either action's goal: one at a time across both (a robot has one arm)."""
         with self._lock:
-            placement = self._placement
-            if placement is not None and not placement.done.is_set() and placement.request == goal:
-                placement.joins.append(time.monotonic())
+            latest = self._goal_run
+            if latest is not None and not latest.done.is_set() and latest.request == goal:
+                latest.joins.append(time.monotonic())
                 return GoalResponse.ACCEPT  # sent again by a client that missed the goal response
         if not self.slot.reserve():
-            self.get_logger().warning(f"goal for tile {goal.tile_id} rejected: a placement is under way")
+            busy = f"{latest.what} is under way" if latest is not None and not latest.done.is_set() \
+                else "another goal was just accepted"
+            self.get_logger().warning(f"{_kind_of(goal).name} goal for tile {goal.tile_id} rejected: {busy} "
+                                      "(one arm, one goal at a time)")
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
@@ -350,138 +364,216 @@ class M3RobotNode(Node):
         return CancelResponse.ACCEPT
 
     def execute(self, goal_handle) -> PlaceTile.Result:
-        request: PlaceTile.Goal = goal_handle.request
-        placement = _Placement(request)
-        with self._lock:  # the slot and the placement change together: a goal sent again finds it
-            latest = self._placement
+        return self._serve(goal_handle, self._place)
+
+    def execute_removal(self, goal_handle) -> RemoveTile.Result:
+        return self._serve(goal_handle, self._remove)
+
+    def _serve(self, goal_handle, run: Callable[[Any, _GoalRun], Any]) -> Any:
+        """Run a goal of either action, or have it follow the same goal under way; its result."""
+        request = goal_handle.request
+        kind = _kind_of(request)
+        current = _GoalRun(request)
+        with self._lock:  # the slot and the latest goal change together: a goal sent again finds it
+            latest = self._goal_run
             joining = latest is not None and latest.claim_join(request, time.monotonic(), self.slot.start_grace)
             started = not joining and self.slot.start()
             if started:
-                self._placement = placement
+                self._goal_run = current
         if joining:
             return self._follow(goal_handle, request, latest)
         if not started:  # a second mission would drive the same robot at the same time
             goal_handle.abort()
-            return PlaceTile.Result(error_code=int(Outcome.FAILED_PRECONDITION),
-                                    message="another placement is under way")
-        result = MissionResult(Outcome.FAILED_HARDWARE, "the placement ended in an internal error")
+            return kind.action.Result(error_code=kind.busy_code, message="another goal is under way")
+        result = kind.action.Result(error_code=kind.action.Result.FAILED_HARDWARE,
+                                    message=f"{current.what} ended in an internal error")
         try:
-            result = self._execute(goal_handle, request, placement)
+            result = run(goal_handle, current)
         finally:
             with self._lock:
                 self.slot.finish()
-            message = self._result_message(result)
-            placement.finish(message, result.outcome)
+            current.finish(result)
         self._conclude(goal_handle, request, result)
-        return message
+        return result
 
-    def _follow(self, goal_handle, request: PlaceTile.Goal, placement: _Placement) -> PlaceTile.Result:
-        """The same goal sent again while its placement runs (its client missed the goal response):
-        it gets that placement's feedback and result, and can cancel it; it does not place the tile
-        a second time."""
-        self.get_logger().warning(f"tile {request.tile_id}: the same goal again (its client missed the "
-                                  "goal response?); it follows the placement under way")
-        placement.followers.append(goal_handle)
-        placement.done.wait()
-        self._conclude(goal_handle, request, MissionResult(placement.outcome, placement.message), quiet=True)
-        return placement.result
+    def _follow(self, goal_handle, request, latest: _GoalRun) -> Any:
+        """The same goal sent again while it runs (its client missed the goal response): it gets
+        that goal's feedback and result, and can cancel it; the tile is not handled a second time."""
+        self.get_logger().warning(f"{latest.what}: the same goal again (its client missed the goal "
+                                  "response?); it follows the one under way")
+        latest.followers.append(goal_handle)
+        latest.done.wait()
+        self._conclude(goal_handle, request, latest.result, quiet=True)
+        return latest.result
 
-    def _result_message(self, result: MissionResult) -> PlaceTile.Result:
-        message = PlaceTile.Result()
-        message.error_code = int(result.outcome)
-        message.message = result.message
-        message.duration = float(result.duration)
-        message.placed_pose.header.frame_id = "map"
-        message.placed_pose.header.stamp = self.get_clock().now().to_msg()
-        if result.placed_pose is not None:
-            message.placed_pose.pose.position.x = result.placed_pose.x
-            message.placed_pose.pose.position.y = result.placed_pose.y
-            message.placed_pose.pose.position.z = result.placed_z
-            set_yaw(message.placed_pose.pose.orientation, result.placed_pose.yaw)
-        return message
-
-    def _conclude(self, goal_handle, request: PlaceTile.Goal, result: MissionResult, quiet: bool = False) -> None:
-        """End the goal as the mission ended; `quiet` for a goal that followed another (told once)."""
-        if result.outcome == Outcome.SUCCEEDED:
+    def _conclude(self, goal_handle, request, result, quiet: bool = False) -> None:
+        """End the goal as its mission ended; `quiet` for a goal that followed another (told once)."""
+        kind = _kind_of(request)
+        tile = request.tile_id
+        if result.error_code == kind.action.Result.SUCCEEDED:
             goal_handle.succeed()
             if not quiet:
-                self.health.set_state(Level.OK, f"idle; placed tile {request.tile_id}")
-                self.get_logger().info(f"placed tile {request.tile_id} in {result.duration:.1f} s")
-        elif result.outcome == Outcome.CANCELED:
+                self.health.set_state(Level.OK, f"idle; {kind.done} tile {tile}")
+                self.get_logger().info(f"{kind.done} tile {tile} in {result.duration:.1f} s")
+        elif result.error_code == kind.action.Result.CANCELED:
             # canceled by this goal's client, by a goal that followed it, or by the node stopping
             if goal_handle.is_cancel_requested:
                 goal_handle.canceled()
             else:
                 goal_handle.abort()
             if not quiet:
-                self.health.set_state(Level.OK, f"idle; tile {request.tile_id} canceled")
-                self.get_logger().info(f"tile {request.tile_id}: canceled, wheels stopped")
+                self.health.set_state(Level.OK, f"idle; {_what(request)} canceled")
+                self.get_logger().info(f"{_what(request)}: canceled, wheels stopped")
         else:
             goal_handle.abort()
             if not quiet:
-                self.health.set_state(Level.WARN, f"idle; tile {request.tile_id} failed: {result.message}")
-                self.get_logger().error(
-                    f"tile {request.tile_id} failed ({result.outcome.name}): {result.message}")
+                code = kind.outcome(result.error_code).name
+                self.health.set_state(Level.WARN, f"idle; {_what(request)} failed: {result.message}")
+                self.get_logger().error(f"{_what(request)} failed ({code}): {result.message}")
 
-    def _execute(self, goal_handle, request: PlaceTile.Goal, placement: _Placement) -> MissionResult:
-        with self._lock:
-            tile_type = self.tile_types.get(request.tile_type)
-        if tile_type is None:
-            return MissionResult(Outcome.FAILED_NO_TILE, f"unknown tile type '{request.tile_type}' "
-                                 "(no footprint from /structure or structure_file)")
-        frame = request.pose.header.frame_id
-        if frame not in ("", "map"):
-            return MissionResult(Outcome.FAILED_NAVIGATION,
-                                 f"goal pose in frame '{frame}'; this robot drives in 'map'")
-        footprint = footprint_of(tile_type)
-        height = float(tile_type.shape.vertices[:, 2].max() - tile_type.shape.vertices[:, 2].min())
+    def _place(self, goal_handle, current: _GoalRun) -> PlaceTile.Result:
+        ended = self._placement(goal_handle, current)
+        result = PlaceTile.Result(error_code=int(ended.outcome), message=ended.message, duration=float(ended.duration))
+        self._fill_pose(result.placed_pose, ended.placed_pose, ended.placed_z)
+        return result
+
+    def _placement(self, goal_handle, current: _GoalRun) -> MissionResult:
+        request: PlaceTile.Goal = goal_handle.request
+        shape = self._shape(request.tile_type)
+        if shape is None:
+            return MissionResult(Outcome.FAILED_NO_TILE, _unknown_type(request.tile_type))
+        problem = _frame_problem(request.pose.header.frame_id)
+        if problem:
+            return MissionResult(Outcome.FAILED_NAVIGATION, problem)
         goal = PlaceGoal(
-            tile_id=request.tile_id, tile_type=request.tile_type, footprint=footprint, height=height,
-            pose=Pose2D(request.pose.pose.position.x, request.pose.pose.position.y,
-                        yaw_of(request.pose.pose.orientation)),
-            z=request.pose.pose.position.z, cache=(request.cache.x, request.cache.y),
+            tile_id=request.tile_id, tile_type=request.tile_type, footprint=shape[0], height=shape[1],
+            pose=_pose_of(request.pose), z=request.pose.pose.position.z, cache=(request.cache.x, request.cache.y),
         )
         self.get_logger().info(
             f"placing tile {goal.tile_id} ({goal.tile_type}) at {goal.pose}, z {goal.z:.3f} m; "
             f"cache at ({goal.cache[0]:.2f}, {goal.cache[1]:.2f})"
         )
+        feedback = self._feedback(PlaceTile.Feedback, goal_handle, current)
+        mission = PlaceTileMission(_GoalHardware(self, goal_handle, current), self.config, feedback,
+                                   log=self.get_logger().info)
+        return mission.run(goal)
 
-        def feedback(phase: Phase, progress: float, pose: Pose2D | None) -> None:
-            msg = PlaceTile.Feedback()
+    def _remove(self, goal_handle, current: _GoalRun) -> RemoveTile.Result:
+        ended = self._removal(goal_handle, current)
+        result = RemoveTile.Result(error_code=int(ended.outcome), message=ended.message,
+                                   duration=float(ended.duration))
+        self._fill_pose(result.found_pose, ended.found_pose, ended.found_z)
+        return result
+
+    def _removal(self, goal_handle, current: _GoalRun) -> RemovalResult:
+        request: RemoveTile.Goal = goal_handle.request
+        shape = self._shape(request.tile_type)
+        if shape is None:
+            return RemovalResult(RemovalOutcome.FAILED_NOT_FOUND, _unknown_type(request.tile_type))
+        problem = _frame_problem(request.pose.header.frame_id)
+        if problem:
+            return RemovalResult(RemovalOutcome.FAILED_NAVIGATION, problem)
+        drop = request.drop_off
+        goal = RemoveGoal(
+            tile_id=request.tile_id, tile_type=request.tile_type, footprint=shape[0], height=shape[1],
+            pose=_pose_of(request.pose), z=request.pose.pose.position.z, drop_off=(drop.x, drop.y, drop.z),
+        )
+        self.get_logger().info(
+            f"removing tile {goal.tile_id} ({goal.tile_type}) believed at {goal.pose}, z {goal.z:.3f} m; "
+            f"drop-off at ({drop.x:.2f}, {drop.y:.2f})"
+        )
+        feedback = self._feedback(RemoveTile.Feedback, goal_handle, current)
+        mission = RemoveTileMission(_GoalHardware(self, goal_handle, current), self.config, feedback,
+                                    log=self.get_logger().info)
+        return mission.run(goal)
+
+    def _shape(self, tile_type: str) -> tuple[np.ndarray, float] | None:
+        """The tile type's footprint and height, None when no structure named it."""
+        with self._lock:
+            known = self.tile_types.get(tile_type)
+        if known is None:
+            return None
+        vertices = known.shape.vertices
+        return footprint_of(known), float(vertices[:, 2].max() - vertices[:, 2].min())
+
+    def _feedback(self, feedback_type, goal_handle, current: _GoalRun) -> PhaseFeedback:
+        """Publishes a mission's phase to its goal and the goals that follow it."""
+        what = _what(goal_handle.request)
+
+        def publish(phase: IntEnum, progress: float, pose: Pose2D | None) -> None:
+            msg = feedback_type()
             msg.phase = int(phase)
             msg.phase_progress = float(progress)
-            msg.robot_pose.header.frame_id = "map"
-            msg.robot_pose.header.stamp = self.get_clock().now().to_msg()
-            if pose is not None:
-                msg.robot_pose.pose.position.x = pose.x
-                msg.robot_pose.pose.position.y = pose.y
-                set_yaw(msg.robot_pose.pose.orientation, pose.yaw)
-            for handle in (goal_handle, *placement.followers):
+            self._fill_pose(msg.robot_pose, pose, 0.0)
+            for handle in (goal_handle, *current.followers):
                 handle.publish_feedback(msg)
-            self.health.set_state(Level.OK, f"tile {goal.tile_id}: {phase.name.lower()} ({progress:.0%})")
+            self.health.set_state(Level.OK, f"{what}: {phase.name.lower()} ({progress:.0%})")
 
-        hardware = _GoalHardware(self, goal_handle, placement)
-        mission = PlaceTileMission(hardware, self.config, feedback, log=self.get_logger().info)
-        return mission.run(goal)
+        return publish
+
+    def _fill_pose(self, msg: PoseStamped, pose: Pose2D | None, z: float) -> None:
+        msg.header.frame_id = "map"
+        msg.header.stamp = self.get_clock().now().to_msg()
+        if pose is not None:
+            msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = pose.x, pose.y, float(z)
+            set_yaw(msg.pose.orientation, pose.yaw)
+
+
+@dataclass(frozen=True)
+class _Kind:
+    """What differs between the node's two actions."""
+
+    action: Any  # PlaceTile or RemoveTile
+    name: str
+    noun: str
+    done: str
+    outcome: type[IntEnum]  # the mission's result codes
+    busy_code: int  # the result of a goal that starts while another runs
+
+
+_PLACING = _Kind(PlaceTile, "place_tile", "placement", "placed", Outcome, PlaceTile.Result.FAILED_PRECONDITION)
+_REMOVING = _Kind(RemoveTile, "remove_tile", "removal", "removed", RemovalOutcome, RemoveTile.Result.FAILED_HARDWARE)
+
+
+def _kind_of(request: PlaceTile.Goal | RemoveTile.Goal) -> _Kind:
+    return _REMOVING if isinstance(request, RemoveTile.Goal) else _PLACING
+
+
+def _what(request: PlaceTile.Goal | RemoveTile.Goal) -> str:
+    return f"tile {request.tile_id}'s {_kind_of(request).noun}"
+
+
+def _unknown_type(tile_type: str) -> str:
+    return f"unknown tile type '{tile_type}' (no footprint from /structure or structure_file)"
+
+
+def _frame_problem(frame: str) -> str | None:
+    if frame in ("", "map"):
+        return None
+    return f"goal pose in frame '{frame}'; this robot drives in 'map'"
+
+
+def _pose_of(msg: PoseStamped) -> Pose2D:
+    return Pose2D(msg.pose.position.x, msg.pose.position.y, yaw_of(msg.pose.orientation))
 
 
 @dataclass
-class _Placement:
-    """The placement under way: its request, the goals that sent it again, and how it ended."""
+class _GoalRun:
+    """The goal under way (of either action): its request, the goals that sent it again, and how
+    it ended."""
 
-    request: PlaceTile.Goal
+    request: PlaceTile.Goal | RemoveTile.Goal
     followers: list = field(default_factory=list)  # goal handles of the goals that sent it again
     joins: list[float] = field(default_factory=list)  # when such goals were accepted (not started yet)
     done: threading.Event = field(default_factory=threading.Event)
-    result: PlaceTile.Result = field(default_factory=PlaceTile.Result)
-    outcome: Outcome = Outcome.FAILED_HARDWARE
+    result: Any = None  # the action's Result, once done
 
     @property
-    def message(self) -> str:
-        return self.result.message
+    def what(self) -> str:
+        return _what(self.request)
 
-    def claim_join(self, request: PlaceTile.Goal, now: float, grace: float) -> bool:
-        """Whether a goal starting now was accepted to join this placement (counted once); an
+    def claim_join(self, request: PlaceTile.Goal | RemoveTile.Goal, now: float, grace: float) -> bool:
+        """Whether a goal starting now was accepted to join this one (counted once); an
         acceptance whose goal did not start within `grace` s lapses (its response was lost too)."""
         self.joins = [t for t in self.joins if now - t < grace]
         if not self.joins or request != self.request:
@@ -489,22 +581,22 @@ class _Placement:
         self.joins.pop(0)
         return True
 
-    def finish(self, result: PlaceTile.Result, outcome: Outcome) -> None:
-        self.result, self.outcome = result, outcome
+    def finish(self, result: Any) -> None:
+        self.result = result
         self.done.set()
 
 
 class _GoalHardware:
-    """The node's robot interface, with cancellation bound to one placement (its goal, and the
-    goals that sent it again)."""
+    """The node's robot interface, with cancellation bound to one goal (and the goals that sent it
+    again)."""
 
-    def __init__(self, node: M3RobotNode, goal_handle, placement: _Placement) -> None:
+    def __init__(self, node: M3RobotNode, goal_handle, current: _GoalRun) -> None:
         self._node = node
         self._goal_handle = goal_handle
-        self._placement = placement
+        self._current = current
 
     def canceled(self) -> bool:
-        handles = (self._goal_handle, *self._placement.followers)
+        handles = (self._goal_handle, *self._current.followers)
         return any(bool(h.is_cancel_requested) for h in handles) or self._node.stopping.is_set()
 
     def __getattr__(self, name: str):

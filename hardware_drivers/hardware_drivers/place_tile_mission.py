@@ -23,7 +23,8 @@ did not follow a step sent twice: a step no joint starts on within ``arm_stall_t
 not arrive, is sent once more), CANCELED. The wheels are stopped on every exit.
 
 The robot is reached through :class:`M3Hardware`, so the same mission runs on the real drivers'
-topics or on anything else that provides them.
+topics or on anything else that provides them. Its steps (:class:`TileMission`) also take a tile
+off the structure (remove_tile_mission).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import Protocol, TypeVar
+from typing import NamedTuple, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +44,7 @@ from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.planar_pose import Pose2D, wrap_angle
 from hardware_drivers.tile_localization import (
     LocalizationParams,
+    TileDetection,
     explain_no_tile,
     find_tile,
     rotational_symmetry,
@@ -114,6 +116,9 @@ class MissionConfig:
     reach_tolerance: float = 0.05  # m
     max_adjustments: int = 2
     cache_search_radius: float = 0.2  # m around the cache point
+    # m around a tile's believed pose on the structure: the laser's points of a tile shifted a few cm
+    # lie up to half its length further (a long rectangle seen end-on)
+    structure_search_radius: float = 0.14
     scans_per_attempt: int = 3
     # the base counts as still when its map pose moves less than this over settle_time
     settle_distance: float = 0.002  # m
@@ -162,11 +167,24 @@ class MissionResult:
 
 
 Feedback = Callable[[Phase, float, Pose2D | None], None]
+PhaseFeedback = Callable[[IntEnum, float, Pose2D | None], None]
 
 
-class PlaceTileMission:
-    def __init__(self, hardware: M3Hardware, config: MissionConfig, feedback: Feedback | None = None,
-                 log: Callable[[str], None] | None = None) -> None:
+class Sighting(NamedTuple):
+    """A tile the laser found: its frame in the arm base's frame and in the map."""
+
+    in_arm: Pose2D
+    in_map: Pose2D
+
+
+class TileMission:
+    """The building blocks of the M3 robot's missions with a tile (placing one here, taking one off
+    the structure in remove_tile_mission): drive, find a tile with the laser, grasp, put down, back
+    away; the fault, hazard and cancel checks throughout. A failure raises MissionFailedError with
+    this module's `Outcome`; `phase` is the subclass's action's feedback phase."""
+
+    def __init__(self, hardware: M3Hardware, config: MissionConfig, feedback: PhaseFeedback | None,
+                 log: Callable[[str], None] | None, phase: IntEnum) -> None:
         self.hw = hardware
         self.config = config
         self.feedback = feedback or (lambda phase, progress, pose: None)
@@ -175,94 +193,51 @@ class PlaceTileMission:
         self.arm_mount = Pose2D(mx, my, myaw)
         self.arm_height = mz
         self.laser_mount = Pose2D(*config.laser_mount)
-        self.phase = Phase.DRIVING_TO_CACHE
+        self.phase = phase
 
-    # ------------------------------------------------------------------ the mission
-    def run(self, goal: PlaceGoal) -> MissionResult:
+    def _stopping(self, body: Callable[[], T]) -> tuple[T | MissionFailedError, float]:
+        """What `body` returned, or the failure that ended it, and the time it took; the wheels are
+        stopped on every exit."""
         start = self.hw.now()
         try:
-            placed, z = self._run(goal)
+            return body(), self.hw.now() - start
         except MissionFailedError as failure:
             self.hw.stop()
-            return MissionResult(failure.outcome, failure.message, duration=self.hw.now() - start)
+            return failure, self.hw.now() - start
         finally:
             self.hw.stop()
-        return MissionResult(Outcome.SUCCEEDED, "", placed, z, self.hw.now() - start)
 
-    def _run(self, goal: PlaceGoal) -> tuple[Pose2D, float]:
+    # ------------------------------------------------------------------ steps
+    def _prepare(self) -> None:
+        """Once the base has a pose: carry pose, gripper open."""
         cfg = self.config
-        self.phase = Phase.DRIVING_TO_CACHE
-        pose = self._wait_for_pose()
+        self._wait_for_pose()
         self._report(0.0)
         self._move_arm({cfg.gripper_joint: cfg.gripper_open, **self._carry()},
                        "carry pose with the gripper open")
-        stop = approach_pose(goal.cache[0], goal.cache[1], pose.x, pose.y, cfg.pick_standoff)
-        self._drive_to(stop, f"the {goal.tile_type} cache at ({goal.cache[0]:.2f}, {goal.cache[1]:.2f})")
 
-        self.phase = Phase.LOCATING_TILE
-        tile_in_arm = self._locate(goal)
-
-        self.phase = Phase.PICKING
-        offset = self._pick(goal, tile_in_arm)
-
-        self.phase = Phase.DRIVING_TO_STRUCTURE
+    def _approach(self, point: tuple[float, float], standoff: float, what: str) -> None:
+        """Drive to face `point` (map) from `standoff`, coming from where the base is."""
         pose = self._pose()
-        stop = approach_pose(goal.pose.x, goal.pose.y, pose.x, pose.y, cfg.place_standoff)
-        self._drive_to(stop, f"tile {goal.tile_id}'s place at ({goal.pose.x:.2f}, {goal.pose.y:.2f})")
+        self._drive_to(approach_pose(point[0], point[1], pose.x, pose.y, standoff), what)
 
-        self.phase = Phase.PLACING
-        placed, z, q_above = self._place(goal, offset)
-
-        self.phase = Phase.RETREATING
-        self._report(0.0)
-        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "lift from the placed tile")
-        self._move_arm(self._carry(), "carry pose")
-        pose = self._pose()
-        back = pose.compose(Pose2D(-cfg.retreat_distance, 0.0, 0.0))
-        self._drive_to(back, "the retreat pose")
-        self._report(1.0)
-        return placed, z
-
-    # ------------------------------------------------------------------ phases
-    def _locate(self, goal: PlaceGoal) -> Pose2D:
+    def _locate_tile(self, footprint: NDArray[np.float64], near: tuple[float, float], radius: float,
+                     tile_type: str, where: str) -> Sighting:
+        """The tile of `footprint` the laser finds within `radius` of `near` (map), once it lies
+        within the arm's comfortable reach (the base is moved at most ``max_adjustments`` times)."""
         cfg = self.config
         for attempt in range(cfg.max_adjustments + 1):
             self._report(attempt / (cfg.max_adjustments + 1))
-            pose = self._settled_pose()
-            cache_in_laser = pose.compose(self.laser_mount).inverse().transform_points(
-                np.array([goal.cache]))[0]
-            region = (float(cache_in_laser[0]), float(cache_in_laser[1]), cfg.cache_search_radius)
-            detection = None
-            reason = "no scan"
-            for _ in range(cfg.scans_per_attempt):
-                self._check()
-                scan = self.hw.scan_after(self.hw.now(), timeout=cfg.scan_wait)
-                if scan is None:
-                    raise MissionFailedError(Outcome.FAILED_HARDWARE,
-                                             f"no laser scan for {cfg.scan_wait:g} s while locating the tile")
-                if self._moved_since(pose):
-                    # the scan and the pose would disagree: wait for the base to stop, then look again
-                    pose = self._settled_pose()
-                    reason = "the base kept moving"
-                    continue
-                detection = find_tile(scan, goal.footprint, cfg.localization, region)
-                if detection is not None:
-                    break
-                reason = explain_no_tile(scan, goal.footprint, cfg.localization, region)
-            if detection is None:
-                raise MissionFailedError(
-                    Outcome.FAILED_NO_TILE,
-                    f"no {goal.tile_type} found by the laser near its cache ({reason})",
-                )
+            pose, detection = self._detect(footprint, near, radius, tile_type, where)
             tile_in_base = self.laser_mount.compose(detection.pose)
             tile_in_arm = self.arm_mount.inverse().compose(tile_in_base)
             tile_map = pose.compose(tile_in_base)
-            self.log(f"found the {goal.tile_type} at {tile_map} in the map ({detection})")
+            self.log(f"found the {tile_type} at {tile_map} in the map ({detection})")
             reach = math.hypot(tile_in_arm.x, tile_in_arm.y)
             bearing = math.atan2(tile_in_arm.y, tile_in_arm.x)
             if abs(reach - cfg.preferred_reach) <= cfg.reach_tolerance and abs(bearing) < 0.6:
                 self._report(1.0)
-                return tile_in_arm
+                return Sighting(tile_in_arm, tile_map)
             if attempt == cfg.max_adjustments:
                 break
             # put the tile at the preferred reach straight ahead of the arm, then look again
@@ -272,13 +247,42 @@ class PlaceTileMission:
             self._drive_to(stop, "a pose within the arm's reach of the tile", report=False)
         raise MissionFailedError(
             Outcome.FAILED_GRASP,
-            f"the {goal.tile_type} stays out of the arm's reach after {cfg.max_adjustments} moves",
+            f"the {tile_type} stays out of the arm's reach after {cfg.max_adjustments} moves",
         )
 
-    def _pick(self, goal: PlaceGoal, tile_in_arm: Pose2D) -> float:
+    def _detect(self, footprint: NDArray[np.float64], near: tuple[float, float], radius: float,
+                tile_type: str, where: str) -> tuple[Pose2D, TileDetection]:
+        """The base's settled pose and the tile found from there, in up to ``scans_per_attempt``
+        fresh scans; FAILED_NO_TILE when none shows it."""
+        cfg = self.config
+        pose = self._settled_pose()
+        reason = "no scan"
+        for _ in range(cfg.scans_per_attempt):
+            self._check()
+            scan = self.hw.scan_after(self.hw.now(), timeout=cfg.scan_wait)
+            if scan is None:
+                raise MissionFailedError(Outcome.FAILED_HARDWARE,
+                                         f"no laser scan for {cfg.scan_wait:g} s while locating the tile")
+            if self._moved_since(pose):
+                # the scan and the pose would disagree: wait for the base to stop, then look again
+                pose = self._settled_pose()
+                reason = "the base kept moving"
+                continue
+            near_in_laser = pose.compose(self.laser_mount).inverse().transform_points(np.array([near]))[0]
+            region = (float(near_in_laser[0]), float(near_in_laser[1]), radius)
+            detection = find_tile(scan, footprint, cfg.localization, region)
+            if detection is not None:
+                return pose, detection
+            reason = explain_no_tile(scan, footprint, cfg.localization, region)
+        raise MissionFailedError(Outcome.FAILED_NO_TILE,
+                                 f"no {tile_type} found by the laser near {where} ({reason})")
+
+    def _grasp(self, tile_in_arm: Pose2D, bottom_z: float, height: float) -> float:
+        """Above the tile, down, close on it, lift, carry pose; the tile's yaw relative to the
+        fingers (to put it down the right way round). `bottom_z`: the tile's bottom above the floor."""
         cfg = self.config
         g = cfg.geometry
-        grasp_z = goal.height * cfg.grasp_height_fraction - self.arm_height
+        grasp_z = bottom_z + height * cfg.grasp_height_fraction - self.arm_height
         try:
             q_above = top_down_grasp(g, tile_in_arm.x, tile_in_arm.y, grasp_z + cfg.approach_height,
                                      tile_in_arm.yaw)
@@ -295,8 +299,7 @@ class PlaceTileMission:
         if gripper - cfg.gripper_closed < cfg.grasp_margin:
             self._move_arm({cfg.gripper_joint: cfg.gripper_open}, "open the empty gripper")
             raise MissionFailedError(Outcome.FAILED_GRASP,
-                                 "the gripper closed on nothing: the tile was not grasped")
-        # the tile's yaw relative to the fingers, to place it the right way round
+                                     "the gripper closed on nothing: the tile was not grasped")
         offset = wrap_angle(tile_in_arm.yaw - forward(g, q_grasp).grasp_yaw())
         self._report(0.7)
         self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "lift the tile")
@@ -308,23 +311,26 @@ class PlaceTileMission:
         self._report(1.0)
         return offset
 
-    def _place(self, goal: PlaceGoal, offset: float) -> tuple[Pose2D, float, tuple[float, ...]]:
+    def _put_down(self, target: Pose2D, z: float, height: float, footprint: NDArray[np.float64],
+                  offset: float, what: str) -> tuple[Pose2D, float, tuple[float, ...]]:
+        """Put the held tile down at `target` (map), its bottom at `z`, and let go; where it was
+        released (from the measured joints), its bottom's height, and the joints above it."""
         cfg = self.config
         g = cfg.geometry
         pose = self._pose()
-        goal_in_arm = pose.compose(self.arm_mount).inverse().compose(goal.pose)
-        z = goal.z + goal.height * cfg.grasp_height_fraction + cfg.release_clearance - self.arm_height
-        period = 2.0 * math.pi / rotational_symmetry(goal.footprint)
+        target_in_arm = pose.compose(self.arm_mount).inverse().compose(target)
+        release_z = z + height * cfg.grasp_height_fraction + cfg.release_clearance - self.arm_height
+        period = 2.0 * math.pi / rotational_symmetry(footprint)
         problems = []
         solution = None
         # a symmetric tile may be put down turned by its symmetry: pick a wrist roll that fits
         for turn in sorted(range(-6, 7), key=abs):
-            yaw = wrap_angle(goal_in_arm.yaw - offset + turn * period)
+            yaw = wrap_angle(target_in_arm.yaw - offset + turn * period)
             try:
-                q_above = top_down_grasp(g, goal_in_arm.x, goal_in_arm.y, z + cfg.approach_height, yaw,
-                                         allow_flip=False)
-                q_place = top_down_grasp(g, goal_in_arm.x, goal_in_arm.y, z, yaw, allow_flip=False)
-                solution = (q_above, q_place)
+                q_above = top_down_grasp(g, target_in_arm.x, target_in_arm.y, release_z + cfg.approach_height,
+                                         yaw, allow_flip=False)
+                q_release = top_down_grasp(g, target_in_arm.x, target_in_arm.y, release_z, yaw, allow_flip=False)
+                solution = (q_above, q_release)
                 break
             except UnreachableError as error:
                 problems.append(str(error))
@@ -333,25 +339,32 @@ class PlaceTileMission:
         if solution is None:
             raise MissionFailedError(
                 Outcome.FAILED_NAVIGATION,
-                f"the goal is out of the arm's reach from where the base stopped: {problems[0]}",
+                f"{what} is out of the arm's reach from where the base stopped: {problems[0]}",
             )
-        q_above, q_place = solution
+        q_above, q_release = solution
         self._report(0.1)
-        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "above the goal")
+        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), f"above {what}")
         self._report(0.4)
-        self._move_arm(dict(zip(cfg.arm_joints, q_place, strict=True)), "down to the goal")
+        self._move_arm(dict(zip(cfg.arm_joints, q_release, strict=True)), f"down to {what}")
         joints = self._joints()
         measured = forward(g, [joints[name][0] for name in cfg.arm_joints])
-        pose = self._pose()
-        arm_in_map = pose.compose(self.arm_mount)
+        arm_in_map = self._pose().compose(self.arm_mount)
         tool = arm_in_map.compose(Pose2D(measured.x, measured.y, measured.grasp_yaw() + offset))
-        grasp_height = goal.height * cfg.grasp_height_fraction
-        placed_z = measured.z + self.arm_height - grasp_height - cfg.release_clearance
+        released_z = measured.z + self.arm_height - height * cfg.grasp_height_fraction - cfg.release_clearance
         self._report(0.7)
         self._move_arm({cfg.gripper_joint: cfg.gripper_open}, "release the tile")
         self._report(1.0)
-        self.log(f"placed tile {goal.tile_id} at {tool} (goal {goal.pose})")
-        return tool, placed_z, q_above
+        return tool, released_z, q_above
+
+    def _retreat(self, q_above: tuple[float, ...]) -> None:
+        """Lift from the tile just let go, carry pose, back away."""
+        cfg = self.config
+        self._report(0.0)
+        self._move_arm(dict(zip(cfg.arm_joints, q_above, strict=True)), "lift from the placed tile")
+        self._move_arm(self._carry(), "carry pose")
+        back = self._pose().compose(Pose2D(-cfg.retreat_distance, 0.0, 0.0))
+        self._drive_to(back, "the retreat pose")
+        self._report(1.0)
 
     # ------------------------------------------------------------------ helpers
     def _carry(self) -> dict[str, float]:
@@ -573,3 +586,42 @@ class PlaceTileMission:
             if now > deadline:
                 return position
             self.hw.sleep(cfg.control_period)
+
+
+class PlaceTileMission(TileMission):
+    def __init__(self, hardware: M3Hardware, config: MissionConfig, feedback: Feedback | None = None,
+                 log: Callable[[str], None] | None = None) -> None:
+        super().__init__(hardware, config, feedback, log, Phase.DRIVING_TO_CACHE)
+
+    def run(self, goal: PlaceGoal) -> MissionResult:
+        ended, duration = self._stopping(lambda: self._run(goal))
+        if isinstance(ended, MissionFailedError):
+            return MissionResult(ended.outcome, ended.message, duration=duration)
+        placed, z = ended
+        return MissionResult(Outcome.SUCCEEDED, "", placed, z, duration)
+
+    def _run(self, goal: PlaceGoal) -> tuple[Pose2D, float]:
+        cfg = self.config
+        self.phase = Phase.DRIVING_TO_CACHE
+        self._prepare()
+        self._approach(goal.cache, cfg.pick_standoff,
+                       f"the {goal.tile_type} cache at ({goal.cache[0]:.2f}, {goal.cache[1]:.2f})")
+
+        self.phase = Phase.LOCATING_TILE
+        tile = self._locate_tile(goal.footprint, goal.cache, cfg.cache_search_radius, goal.tile_type,
+                                 "its cache")
+
+        self.phase = Phase.PICKING
+        offset = self._grasp(tile.in_arm, 0.0, goal.height)
+
+        self.phase = Phase.DRIVING_TO_STRUCTURE
+        self._approach((goal.pose.x, goal.pose.y), cfg.place_standoff,
+                       f"tile {goal.tile_id}'s place at ({goal.pose.x:.2f}, {goal.pose.y:.2f})")
+
+        self.phase = Phase.PLACING
+        placed, z, q_above = self._put_down(goal.pose, goal.z, goal.height, goal.footprint, offset, "the goal")
+        self.log(f"placed tile {goal.tile_id} at {placed} (goal {goal.pose})")
+
+        self.phase = Phase.RETREATING
+        self._retreat(q_above)
+        return placed, z

@@ -7,7 +7,7 @@ import math
 import pytest
 from conftest import STRUCTURES
 
-from assembly_node.bidding import compute_bid
+from assembly_node.bidding import compute_bid, compute_repair_bid
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.time_model import TimeModel
 
@@ -45,3 +45,12 @@ def test_a_robot_with_nothing_left_bids_in_floats() -> None:
     bid = compute_bid(PAPER, MODEL, [], 5, None, 30.0, 10.0)
     assert isinstance(bid.workload, float) and isinstance(bid.value, float)
     assert bid.value == 0.0
+
+
+def test_a_repair_bid_counts_the_distance_from_where_the_robot_stands() -> None:
+    tile = PAPER.tiles[6].centroid
+    near = compute_repair_bid(PAPER, TimeModel(), [9, 13], 6, (tile[0] + 0.5, tile[1]), 30.0, 10.0)
+    far = compute_repair_bid(PAPER, TimeModel(), [9, 13], 6, (tile[0] + 3.0, tile[1]), 30.0, 10.0)
+    assert math.isclose(near.cache_distance, 0.5) and math.isclose(far.cache_distance, 3.0)
+    assert near.supported_count == 1  # 9 rests on 6
+    assert math.isclose(far.value - near.value, 25.0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from conftest import STRUCTURES
 
-from assembly_node.executor import Outcome, PlanExecutor, StepKind
+from assembly_node.executor import Outcome, PlanExecutor, Step, StepKind
 from tiling_assembly.structure_file import load_structure
 
 PAPER = load_structure(STRUCTURES / "paper_14.yaml")
@@ -155,3 +155,60 @@ def test_start_refuses_foreign_tiles() -> None:
     state = executor([3])
     with pytest.raises(ValueError):
         state.start(5)
+
+
+def test_a_repair_takes_off_top_down_then_places_bottom_up_before_the_rest() -> None:
+    state = executor([13])
+    for tile in (1, 2, 3, 6, 4, 9):
+        state.note_placed(tile)
+    state.award_repair(6, [9, 4])  # 9 and 4 rest on the wrong tile 6, top down
+    assert 6 not in state.placed and 4 not in state.placed and 9 not in state.placed
+    for tile in (9, 4, 6):
+        step = state.next_step()
+        assert (step.kind, step.tile_id) == (StepKind.REMOVE, tile)
+        state.start_removal(tile)
+        assert state.next_step().kind is StepKind.BUSY and state.task()[0] == 6  # nothing placing
+        assert state.finish_removal(tile, True) is Outcome.REMOVED
+    for tile in (6, 4, 9):  # the right tile, then the others back
+        place(state, tile)
+    assert state.remaining == [13]
+
+
+def test_a_tile_found_resting_on_the_one_to_take_off_comes_off_first_and_goes_back() -> None:
+    state = executor([13])
+    for tile in (1, 2, 3, 6):
+        state.note_placed(tile)
+    state.award_repair(6, [])
+    state.start_removal(6)
+    assert state.finish_removal(6, False, resting_on_it=[9]) is Outcome.RETRY  # 9 was placed since
+    assert state.removal_attempts[6] == 0  # not the robot's fault
+    assert state.next_step() == Step(StepKind.REMOVE, 9)
+    state.start_removal(9)
+    state.finish_removal(9, True)
+    state.start_removal(6)
+    state.finish_removal(6, True)
+    assert state.remaining == [6, 9, 13]
+
+
+def test_a_repair_whose_removals_keep_failing_is_given_up() -> None:
+    state = executor([13], attempts=2)
+    state.note_placed(6)
+    state.award_repair(6, [])
+    for expected in (Outcome.RETRY, Outcome.GAVE_UP):
+        state.start_removal(6)
+        assert state.finish_removal(6, False) is expected
+    assert state.to_take_off == [] and state.remaining == [13]
+
+
+def test_a_tile_blocked_by_a_wrong_tile_waits_for_its_repair_without_using_an_attempt() -> None:
+    state = executor([9, 13], attempts=1)
+    for tile in (6, 4):
+        state.note_placed(tile)
+    state.start(9)
+    assert state.finish(9, False, wrong_tiles=[6]) is Outcome.WAITS_FOR_REPAIR
+    assert state.next_step() == Step(StepKind.WAIT, 9, (6,))
+    state.note_missing(6)  # the repair takes it off
+    state.note_placed(6)  # ... and places it right
+    assert state.next_step() == Step(StepKind.PLACE, 9)
+    state.start(9)
+    assert state.finish(9, True) is Outcome.PLACED  # its one attempt was still there

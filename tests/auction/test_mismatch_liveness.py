@@ -105,3 +105,19 @@ def test_an_unconfirmed_report_is_due_after_the_timeout_once() -> None:
     assert reports.due(160.0) == [(3, 100.0, "robot2", 9)]
     assert reports.due(200.0) == [(5, 120.0, "robot1", 12)]
     assert reports.due(500.0) == []
+
+
+def test_a_tile_lying_wrong_is_confirmed_from_two_standpoints_with_no_present_verdict_between() -> None:
+    detector = MismatchDetector(confirmations=2, min_view_change=0.15)
+    assert detector.flagged({4: True}, view=(1.0, 0.0)) == []  # never claimed placed: nothing to repair
+    detector.placed(4, at=10.0)
+    assert detector.flagged({4: True}, at=5.0, view=(1.0, 0.0)) == []  # before the placement
+    assert detector.flagged({4: True}, at=20.0, view=(1.0, 0.0)) == []
+    assert detector.flagged({4: True}, at=21.0, view=(1.05, 0.0)) == []  # same standpoint
+    assert detector.flagged({4: False}, at=22.0, view=(0.0, 1.0)) == []  # present: cleared
+    assert detector.flagged({4: True}, at=23.0, view=(0.0, 1.0)) == []
+    assert detector.flagged({4: True}, at=24.0, view=(1.0, 0.0)) == [4]
+    assert detector.q[4] == 0  # no longer placed until the repair puts it back
+    assert detector.flagged({4: True}, at=25.0, view=(0.0, -1.0)) == []
+    detector.placed(4, at=30.0)
+    assert detector.flagged({4: True}, at=31.0, view=(0.0, -1.0)) == []  # the old streak is forgotten

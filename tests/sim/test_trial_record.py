@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from tiling_sim.trial_record import (
     REASON_FOUND_MISSING,
+    REASON_MISPLACED,
     REASON_MISSING,
     Announcement,
     Scan,
@@ -12,7 +13,9 @@ from tiling_sim.trial_record import (
     detection_stats,
     duplicate_placements,
     false_missing_calls,
+    false_repairs,
     lost_placements,
+    misplacement_outcomes,
 )
 
 
@@ -95,3 +98,29 @@ def test_percentiles_by_nearest_rank() -> None:
     values = [0.1 * k for k in range(1, 21)]
     assert percentile(values, 50) == values[9] and percentile(values, 95) == values[18]
     assert percentile([], 95) is None
+
+
+def test_wrong_landings_are_detected_when_their_repair_is_auctioned_and_repaired_when_right_again() -> None:
+    r = TrialRecord(trial=1, seed=1, removals_planned=0)
+    r.events = [
+        WorldEvent(10.0, "placed", 6), WorldEvent(10.0, "misplaced", 6, misplacement="turn"),
+        WorldEvent(12.0, "placed", 7), WorldEvent(12.0, "misplaced", 7, misplacement="wrong_type"),
+        WorldEvent(40.0, "taken_off", 6),
+        WorldEvent(60.0, "placed", 6), WorldEvent(60.0, "misplaced", 6, misplacement="shift"),  # wrong again
+        WorldEvent(70.0, "taken_off", 6), WorldEvent(90.0, "placed", 6),
+        WorldEvent(95.0, "placed", 8),
+    ]
+    r.announcements = [
+        Announcement(30.0, 1, 6, REASON_MISPLACED),
+        Announcement(65.0, 2, 6, REASON_MISPLACED),
+        Announcement(96.0, 3, 8, REASON_MISPLACED),  # 8 lay right: a false repair
+        Announcement(97.0, 4, 6, REASON_MISPLACED),  # 6 was right again by then: another
+    ]
+    outcomes = [o.as_dict() for o in misplacement_outcomes(r)]
+    assert outcomes == [
+        {"tile": 6, "kind": "turn", "injected_at": 10.0, "detected_at": 30.0, "repaired_at": 90.0},
+        {"tile": 7, "kind": "wrong_type", "injected_at": 12.0, "detected_at": None, "repaired_at": None},
+        {"tile": 6, "kind": "shift", "injected_at": 60.0, "detected_at": 65.0, "repaired_at": 90.0},
+    ]
+    assert false_repairs(r) == [{"t": 96.0, "tile": 8}, {"t": 97.0, "tile": 6}]
+    assert not r.present_at(6, 50.0, r.presence_intervals())  # taken off ends its stay

@@ -11,16 +11,19 @@ from conftest import STRUCTURES
 
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure_file import load_structure
-from tiling_sim.faults import FaultInjector, choose_landings, mistaken_type
+from tiling_sim.faults import FaultInjector, choose_wrong_tiles, mistaken_type
 from tiling_sim.robot_motion import (
     MotionModel,
     approach_point,
     drive_time_to_pose,
     footprint_overlaps,
     placement_phases,
+    removal_phases,
     start_positions,
 )
 from tiling_sim.world import Misplacement, PhysicalWorld, PlaceCheck
+from tiling_sim.world_referee import Outcome as RefereeOutcome
+from tiling_sim.world_referee import WorldReferee
 
 PAPER = load_structure(STRUCTURES / "paper_14.yaml")
 
@@ -173,28 +176,89 @@ def test_a_wrong_tile_is_another_type_of_the_same_height_from_the_nearest_cache(
     world.place(3, Misplacement(type_name="octagon"))
     real = world.actual(3)
     assert real.type_name == "octagon" and np.allclose(real.position, PAPER.tiles[3].position)
-    assert world.misplaced[3].kind == "wrong type" and not world.complete()
+    assert world.misplaced[3].kind == "wrong_type" and not world.complete()
 
 
-def test_landings_are_seeded_in_range_and_leave_removals_as_they_were() -> None:
-    misplaced, wrong = choose_landings(seed=4, placements=14, misplaced=3, wrong_type=2)
-    assert (misplaced, wrong) == choose_landings(seed=4, placements=14, misplaced=3, wrong_type=2)
-    assert len(misplaced) == 3 and len(wrong) == 2 and not misplaced & wrong and misplaced | wrong <= set(range(1, 15))
-    every = frozenset(range(1, 201))
-    faults = FaultInjector(seed=4, misplaced_landings=every)
-    for _ in every:
-        landing = faults.landing(PAPER, 3)
+def test_wrong_tiles_are_seeded_by_tile_in_range_and_leave_removals_as_they_were() -> None:
+    misplaced, wrong = choose_wrong_tiles(seed=4, structure=PAPER, misplaced=3, wrong_type=2)
+    assert (misplaced, wrong) == choose_wrong_tiles(seed=4, structure=PAPER, misplaced=3, wrong_type=2)
+    assert len(misplaced) == 3 and len(wrong) == 2 and not misplaced & wrong and misplaced | wrong <= set(PAPER.tiles)
+    assert all(mistaken_type(PAPER, PAPER.tiles[t].type_name) for t in wrong)
+    every = frozenset(PAPER.tiles)
+    landings = [FaultInjector(seed=4, misplaced_tiles=every).landing(PAPER, t) for t in sorted(every)]
+    for landing in landings:
         assert landing is not None and landing.type_name is None
         if landing.turn:
             assert math.radians(15.0) <= abs(landing.turn) <= math.radians(45.0) and landing.shift == (0.0, 0.0)
         else:
             assert 0.02 <= math.hypot(*landing.shift) <= 0.05
-    wrong_only = FaultInjector(seed=4, wrong_type_landings=frozenset({2}))
-    assert [wrong_only.landing(PAPER, 3) for _ in range(3)] == [None, Misplacement(type_name="octagon"), None]
-    plain, with_landings = FaultInjector(seed=9), FaultInjector(seed=9, misplaced_landings=every)
-    for _ in range(5):
-        with_landings.landing(PAPER, 3)
+    assert {landing.kind for landing in landings} == {"shift", "turn"}
+    # how a tile lands depends on the seed and the tile, not on the order tiles are placed in
+    backwards = FaultInjector(seed=4, misplaced_tiles=every)
+    assert [backwards.landing(PAPER, t) for t in sorted(every, reverse=True)] == landings[::-1]
+    wrong_only = FaultInjector(seed=4, wrong_type_tiles=frozenset({3}))
+    assert [wrong_only.landing(PAPER, t) for t in (2, 3, 3)] == [None, Misplacement(type_name="octagon"), None]
+    plain, with_landings = FaultInjector(seed=9), FaultInjector(seed=9, misplaced_tiles=every)
+    for tile in range(1, 6):
+        with_landings.landing(PAPER, tile)
     removals = [with_landings.choose(list(range(20))) for _ in range(5)]
     assert [plain.choose(list(range(20))) for _ in range(5)] == removals
     with pytest.raises(ValueError, match="both land off and be of the wrong type"):
-        FaultInjector(seed=1, misplaced_landings=frozenset({1}), wrong_type_landings=frozenset({1}))
+        FaultInjector(seed=1, misplaced_tiles=frozenset({1}), wrong_type_tiles=frozenset({1}))
+
+
+def test_a_placement_the_faults_pick_lands_wrong_and_a_repair_takes_it_off() -> None:
+    referee = WorldReferee(PhysicalWorld(PAPER), FaultInjector(seed=2, misplaced_tiles=frozenset({6})))
+    answer = referee.placing("robot1", 6)  # its first placement lands off
+    assert answer.outcome is RefereeOutcome.OK
+    (placed, _), (kind, landed) = answer.events
+    assert (placed, kind, landed["tile"]) == ("placed", "misplaced", 6)
+    assert landed["misplacement"] in ("shift", "turn")
+    assert 6 in referee.world.misplaced
+    # placing it again finds it there, lying wrong: the robot is told which tile is in the way
+    again = referee.placing("robot2", 6)
+    assert again.outcome is RefereeOutcome.BLOCKED and again.wrong_tiles == [6]
+    assert referee.removing("robot1", 6).outcome is RefereeOutcome.OK
+    lifted = referee.lifted("robot1", 6)
+    assert lifted.outcome is RefereeOutcome.OK
+    assert lifted.events == [("taken_off", {"tile": 6, "robot": "robot1", "lay_wrong": landed["misplacement"]})]
+    assert 6 not in referee.world.present and not referee.world.misplaced
+    assert referee.placing("robot1", 6).events == [("placed", {"tile": 6, "robot": "robot1"})]  # right this time
+    assert referee.removing("robot1", 7).outcome is RefereeOutcome.NOT_THERE
+
+
+def test_a_tile_rests_on_a_wrong_type_of_its_height_and_must_come_off_first() -> None:
+    world = PhysicalWorld(PAPER)
+    mix_up = mistaken_type(PAPER, "trapezoid")
+    assert mix_up is not None
+    world.place(6, Misplacement(type_name=mix_up))  # the wrong type under 9
+    assert world.check_placement(9)[0] is PlaceCheck.OK  # same height: 9 can rest on it
+    world.place(9)
+    referee = WorldReferee(world, FaultInjector(seed=1))
+    refused = referee.lifted("robot1", 6)
+    assert refused.outcome is RefereeOutcome.TILE_ON_TOP and refused.resting_on_it == [9]
+    assert refused.reason == "tile 6 cannot come off: tile 9 rests on it"
+    assert 6 in world.present
+    shifted = PhysicalWorld(PAPER)
+    shifted.place(6, Misplacement(shift=(0.03, 0.0)))
+    assert shifted.check_placement(9)[0] is PlaceCheck.BLOCKED and shifted.blocking(9) == [6]
+
+
+def test_a_tile_with_no_room_to_land_wrong_lands_as_planned() -> None:
+    world = PhysicalWorld(PAPER)
+    for tile in (1, 2, 3):
+        world.place(tile)
+    referee = WorldReferee(world, FaultInjector(seed=1))
+    referee.faults.landing = lambda structure, tile: Misplacement(turn=math.radians(15.0))  # type: ignore[method-assign]
+    answer = referee.placing("robot1", 6)  # the rectangles leave a trapezoid no room to lie turned
+    assert answer.events == [("placed", {"tile": 6, "robot": "robot1"})] and not world.misplaced
+
+
+def test_removal_phases_go_to_the_tile_then_to_the_drop_off() -> None:
+    model = MotionModel()
+    phases = removal_phases(model, (1.0, 0.0), (0.0, 0.0), (-1.0, 0.0))
+    assert [p.phase for p in phases] == [1, 2, 3, 4, 5, 6]
+    at_tile = phases[0].end
+    assert math.isclose(math.dist(at_tile, (0.0, 0.0)), model.approach_distance)
+    assert phases[3].end == (-1.0, 0.0) and phases[5].end == (-1.0, 0.0)
+    assert math.isclose(phases[0].duration, math.dist((1.0, 0.0), at_tile) / model.drive_speed)

@@ -1,15 +1,18 @@
 """`experiment`: the paper's experiment in simulation (paper section 3), the product's main job.
 
     ros2 run tiling_sim experiment [--structure FILE] [--robots N] [--trials N] [--removals N]
+                                   [--misplacements N] [--wrong-tiles N]
                                    [--seed N] [--real-time-factor X] [--report DIR]
 
 Every trial starts every node as its own OS process, exactly as on the robots (the simulated
 world, the planner, the auction node, one assembly node per robot in /robotK, the inspection and
 exploration nodes of the VI robot in /vi), lets them build the structure while the world removes
-tiles at random times, and stops them all. A first trial without faults gives the makespan to
-compare with. At the end it prints the initial allocation (Table 1), the allocation after
-detections of one trial (Table 2), the detection statistics beside the paper's, whether every
-trial finished the structure, and makespans; and writes a report folder with pictures.
+tiles at random times (and, beyond the paper, lets chosen placements land shifted, turned or as a
+tile of the wrong type, for the team to find and repair), and stops them all. A first trial
+without faults gives the makespan to compare with. At the end it prints the initial allocation
+(Table 1), the allocation after detections of one trial (Table 2), the detection statistics beside
+the paper's, the repairs of wrong placements, whether every trial finished the structure, and
+makespans; and writes a report folder with pictures.
 """
 
 from __future__ import annotations
@@ -52,6 +55,8 @@ class TrialSetup:
     seed: int
     removals: int
     faults: bool
+    misplacements: int = 0  # placements that land shifted or turned
+    wrong_tiles: int = 0  # placements of a tile of the wrong type
 
 
 def executable(package: str, name: str) -> str:
@@ -176,7 +181,8 @@ class Experiment:
         c = self.config
         window = (0.15 * self.estimated_makespan, 0.75 * self.estimated_makespan)
         return [self.sim_world, "--ros-args", *self.params("tiling_sim.yaml"), *self.testbed_arguments(setup),
-                "-p", f"removals:={setup.removals}",
+                "-p", f"removals:={setup.removals}", "-p", f"misplacements:={setup.misplacements}",
+                "-p", f"wrong_tiles:={setup.wrong_tiles}",
                 "-p", f"removal_window_start:={window[0]:.1f}", "-p", f"removal_window_end:={window[1]:.1f}",
                 "-p", f"real_time_factor:={c.real_time_factor}", "-p", "wait_for_start:=true",
                 "-p", f"drop_probability:={c.drop_probability if setup.faults else 0.0}"]
@@ -255,11 +261,15 @@ class Experiment:
         c = self.config
         result = ExperimentResult(c, self.structure)
         counts = removals_per_trial(c.removals, c.trials, c.seed)
+        misplaced = removals_per_trial(c.misplacements, c.trials, c.seed + 1)
+        wrong = removals_per_trial(c.wrong_tiles, c.trials, c.seed + 2)
         setups = ([TrialSetup(0, c.seed, 0, False)] if c.baseline else []) + [
-            TrialSetup(k + 1, c.seed + k + 1, counts[k], True) for k in range(c.trials)
+            TrialSetup(k + 1, c.seed + k + 1, counts[k], True, misplaced[k], wrong[k]) for k in range(c.trials)
         ]
         for setup in setups:
             label = "baseline, no faults" if not setup.faults else f"{setup.removals} removal(s)"
+            if setup.misplacements or setup.wrong_tiles:
+                label += f", {setup.misplacements} misplaced, {setup.wrong_tiles} wrong tile(s)"
             progress = f"[trial {setup.trial}/{c.trials}] {label}:"
             wall = time.monotonic()
             record = self.run_trial(setup, progress)
@@ -295,6 +305,12 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
                         help=f"trials with faults (default {defaults.trials})")
     parser.add_argument("--removals", type=int, default=defaults.removals,
                         help=f"tiles removed over all trials (default {defaults.removals})")
+    parser.add_argument("--misplacements", type=int, default=defaults.misplacements,
+                        help="placements that land shifted 2-5 cm or turned 15-45 deg, over all trials "
+                        f"(default {defaults.misplacements})")
+    parser.add_argument("--wrong-tiles", type=int, default=defaults.wrong_tiles,
+                        help="placements of a tile of the wrong type, over all trials "
+                        f"(default {defaults.wrong_tiles})")
     parser.add_argument("--seed", type=int, default=defaults.seed,
                         help=f"seed of the whole experiment (default {defaults.seed})")
     parser.add_argument("--real-time-factor", type=float, default=None,
@@ -326,8 +342,10 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     args = parser.parse_args(argv)
     structure = Path(args.structure)
     time_factor = args.real_time_factor or (DEFAULT_NETNS_TIME_FACTOR if args.hosts else defaults.real_time_factor)
-    if args.robots < 1 or args.trials < 0 or args.removals < 0 or time_factor <= 0:
-        parser.error("--robots must be >= 1, --trials and --removals >= 0, --real-time-factor > 0")
+    if args.robots < 1 or args.trials < 0 or min(args.removals, args.misplacements, args.wrong_tiles) < 0 \
+            or time_factor <= 0:
+        parser.error("--robots must be >= 1, --trials, --removals, --misplacements and --wrong-tiles >= 0, "
+                     "--real-time-factor > 0")
     if not Path(args.config).is_dir():
         parser.error(f"--config {args.config}: no such folder of parameter files")
     robots = [f"robot{k + 1}" for k in range(args.robots)]
@@ -340,6 +358,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
         parser.error(str(error))
     return ExperimentConfig(
         structure_file=structure.resolve(), robots=args.robots, trials=args.trials, removals=args.removals,
+        misplacements=args.misplacements, wrong_tiles=args.wrong_tiles,
         seed=args.seed, real_time_factor=time_factor, network=network,
         report_dir=Path(args.report or f"{REPORTS}/{structure.stem}"), config_dir=Path(args.config).resolve(),
         baseline=not args.no_baseline, drop_probability=args.drop_probability, kill_robot=args.kill_robot,

@@ -106,7 +106,8 @@ class ExperimentObserver(Node):
             self.record.unjudged_scans.append(float(data["scan_t"]))
             return
         event = WorldEvent(t=float(data["t"]), kind=kind, tile=int(data.get("tile", 0)),
-                           robot=str(data.get("robot", "")), reason=str(data.get("reason", "")))
+                           robot=str(data.get("robot", "")), reason=str(data.get("reason", "")),
+                           misplacement=str(data.get("misplacement", "")))
         self.record.events.append(event)
         if kind == "complete" and int(data.get("pending_removals", 0)) == 0:
             self.record.completed_at = event.t

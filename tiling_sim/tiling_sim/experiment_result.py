@@ -20,6 +20,8 @@ class ExperimentConfig:
     robots: int = 2
     trials: int = 14
     removals: int = 22
+    misplacements: int = 0  # placements landing shifted or turned, over all trials
+    wrong_tiles: int = 0  # placements of a tile of the wrong type, over all trials
     seed: int = 1
     real_time_factor: float = 20.0
     report_dir: Path = Path("reports/paper_14")

@@ -6,11 +6,13 @@ gripper during a placement (the placement then fails). The tile removed at each 
 from the tiles that can be removed then (placed, nothing on top), with the same seeded generator,
 so a trial is reproducible from its seed.
 
-Beyond the paper (its future work): chosen placements of a trial land wrong. A misplaced tile is
-shifted 2-5 cm in a random direction or turned 15-45 degrees about the vertical; a wrong tile is a
-tile of another type of the same height, from the parts cache nearest the right one (the mix-up a
-robot makes at neighbouring caches). These draws use a generator of their own, so that a trial's
-removals and drops stay what they were without them.
+Beyond the paper (its future work): chosen tiles of a trial land wrong the first time they are
+placed. A misplaced tile is shifted 2-5 cm in a random direction or turned 15-45 degrees about the
+vertical; a wrong tile is a tile of another type of the same height, from the parts cache nearest
+the right one (the mix-up a robot makes at neighbouring caches). The tiles and how each lands are
+drawn from the seed and the tile alone, never from the order the robots happen to place them in, so
+a trial's faults do not depend on how busy the host is; and with generators of their own, so that
+a trial's removals and drops stay what they were without them.
 """
 
 from __future__ import annotations
@@ -19,8 +21,10 @@ import math
 import random
 from dataclasses import dataclass, field
 
+import networkx as nx
+
 from tiling_assembly.structure import Structure
-from tiling_sim.world import Misplacement
+from tiling_sim.world import Misplacement, PhysicalWorld
 
 SHIFT_RANGE = (0.02, 0.05)  # m
 TURN_RANGE = (math.radians(15.0), math.radians(45.0))
@@ -31,19 +35,17 @@ class FaultInjector:
     seed: int
     removal_times: list[float] = field(default_factory=list)  # s of simulated time, ascending
     drop_probability: float = 0.0
-    misplaced_landings: frozenset[int] = frozenset()  # ordinals (1 = first) of placements that land off
-    wrong_type_landings: frozenset[int] = frozenset()  # ordinals of placements of a tile of the wrong type
+    misplaced_tiles: frozenset[int] = frozenset()  # tiles whose first placement lands off
+    wrong_type_tiles: frozenset[int] = frozenset()  # tiles whose first placement is of a wrong type
     rng: random.Random = field(init=False)
-    landing_rng: random.Random = field(init=False)
-    landings: int = field(init=False, default=0)  # placements landed so far
+    landed: set[int] = field(init=False, default_factory=set)  # chosen tiles placed once already
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.drop_probability <= 1.0:
             raise ValueError("drop_probability must lie in [0, 1]")
-        if self.misplaced_landings & self.wrong_type_landings:
+        if self.misplaced_tiles & self.wrong_type_tiles:
             raise ValueError("a placement cannot both land off and be of the wrong type")
         self.rng = random.Random(self.seed)
-        self.landing_rng = random.Random(self.seed * 104729 + 3)
         self.removal_times = sorted(self.removal_times)
 
     @classmethod
@@ -72,27 +74,40 @@ class FaultInjector:
         return self.drop_probability > 0 and self.rng.random() < self.drop_probability
 
     def landing(self, structure: Structure, tile_id: int) -> Misplacement | None:
-        """How the tile placed now really lands: None when as planned. Counts the placement."""
-        self.landings += 1
-        if self.landings in self.misplaced_landings:
-            if self.landing_rng.random() < 0.5:
-                distance = self.landing_rng.uniform(*SHIFT_RANGE)
-                direction = self.landing_rng.uniform(0.0, 2.0 * math.pi)
-                return Misplacement(shift=(distance * math.cos(direction), distance * math.sin(direction)))
-            return Misplacement(turn=self.landing_rng.choice((-1.0, 1.0)) * self.landing_rng.uniform(*TURN_RANGE))
-        if self.landings in self.wrong_type_landings:
+        """How `tile_id`, placed now, really lands: None when as planned (and every time after the first)."""
+        if tile_id in self.landed or tile_id not in self.misplaced_tiles | self.wrong_type_tiles:
+            return None
+        self.landed.add(tile_id)
+        draw = random.Random(self.seed * 104729 + tile_id)
+        if tile_id in self.wrong_type_tiles:
             other = mistaken_type(structure, structure.tiles[tile_id].type_name)
             return None if other is None else Misplacement(type_name=other)
-        return None
+        if draw.random() < 0.5:
+            distance = draw.uniform(*SHIFT_RANGE)
+            direction = draw.uniform(0.0, 2.0 * math.pi)
+            return Misplacement(shift=(distance * math.cos(direction), distance * math.sin(direction)))
+        return Misplacement(turn=draw.choice((-1.0, 1.0)) * draw.uniform(*TURN_RANGE))
 
 
-def choose_landings(
-    seed: int, placements: int, misplaced: int, wrong_type: int
+def choose_wrong_tiles(
+    seed: int, structure: Structure, misplaced: int, wrong_type: int
 ) -> tuple[frozenset[int], frozenset[int]]:
-    """Which placements of a trial (ordinals 1..placements) land off and which are of the wrong type."""
+    """Which tiles of `structure` land off and which are put down as a tile of the wrong type (only
+    tiles whose same-height mix-up fits where they go, whatever lies around; a bigger tile would not
+    go down at all); fewer when the structure has too few."""
     rng = random.Random(seed * 7919 + 29)
-    chosen = rng.sample(range(1, placements + 1), min(placements, misplaced + wrong_type))
-    return frozenset(chosen[:misplaced]), frozenset(chosen[misplaced:])
+    mixable = [t for t in structure.tile_ids if _mix_up_fits(structure, t)]
+    wrong = rng.sample(mixable, min(wrong_type, len(mixable)))
+    rest = sorted(set(structure.tiles) - set(wrong))
+    return frozenset(rng.sample(rest, min(misplaced, len(rest)))), frozenset(wrong)
+
+
+def _mix_up_fits(structure: Structure, tile_id: int) -> bool:
+    other = mistaken_type(structure, structure.tiles[tile_id].type_name)
+    if other is None:
+        return False
+    around = set(structure.tiles) - {tile_id} - nx.descendants(structure.precedence, tile_id)
+    return PhysicalWorld(structure, present=around).room_for(tile_id, Misplacement(type_name=other))
 
 
 def mistaken_type(structure: Structure, type_name: str) -> str | None:

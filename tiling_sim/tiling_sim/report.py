@@ -36,14 +36,17 @@ from tiling_sim.trial_record import (
     detection_stats,
     duplicate_placements,
     false_missing_calls,
+    false_repairs,
     lost_placements,
+    misplacement_outcomes,
     removal_outcomes,
     schedule,
     total_stats,
 )
 
 STATE_COLOURS = {PRESENT: "#3a9d3a", MISSING: "#d43a3a", OCCLUDED: "#e8c23a", "unknown": "#9a9a9a"}
-KIND_COLOURS = {"place": "#4a78c2", "replace": "#e0892b", "failed": "#c23a3a", "wait": "#d9d9d9"}
+KIND_COLOURS = {"place": "#4a78c2", "replace": "#e0892b", "take off": "#2f9e6e", "failed": "#c23a3a",
+                "wait": "#d9d9d9"}
 PAPER = {"removed": 22, "detected": 12, "undetermined": 10, "missing_called_present": 0, "present_called_missing": 1}
 
 
@@ -113,6 +116,26 @@ def detection_table(result: ExperimentResult) -> list[str]:
     for type_name, (removed, reported, found) in sorted(stats.by_type.items()):
         rows.append([f"  {_pretty(type_name)}", f"{removed} / {reported} / {found}", "-"])
     return _table(["", "this run", "paper"], rows)
+
+
+def misplacement_table(result: ExperimentResult) -> list[str]:
+    """Placements that landed wrong, per kind: injected, detected (repair auctioned), repaired; false
+    repairs; the time from landing to the right tile in place."""
+    outcomes = [o for r in result.fault_trials() for o in misplacement_outcomes(r)]
+    rows = []
+    for kind in ("shift", "turn", "wrong_type"):
+        mine = [o for o in outcomes if o.kind == kind]
+        detected = sum(o.detected_at is not None for o in mine)
+        repaired = sum(o.repaired_at is not None for o in mine)
+        rows.append([kind.replace("_", " "), str(len(mine)), str(detected), str(repaired)])
+    rows.append(["all", str(len(outcomes)), str(sum(o.detected_at is not None for o in outcomes)),
+                 str(sum(o.repaired_at is not None for o in outcomes))])
+    lines = _table(["landed wrong", "injected", "detected", "repaired"], rows)
+    times = [o.repaired_at - o.injected_at for o in outcomes if o.repaired_at is not None]
+    wrongly = sum(len(false_repairs(r)) for r in result.fault_trials())
+    median = f"{statistics.median(times):.0f} s simulated" if times else "-"
+    return [*lines, f"false repairs (repair auctioned for a tile lying right): {wrongly}; "
+                    f"median landing -> right tile in place: {median}"]
 
 
 def first_plan(result: ExperimentResult) -> PlanRecord | None:
@@ -217,6 +240,8 @@ def summary_text(result: ExperimentResult) -> str:
         title = f"Table 2. Allocation after detection of missing tiles (trial {trial.trial})"
         lines += [title, *table2(trial, robots), ""]
     lines += ["Detection statistics over the trials with faults", *detection_table(result), ""]
+    if any(e.kind == "misplaced" for r in result.fault_trials() for e in r.events):
+        lines += ["Placements that landed wrong, and their repair", *misplacement_table(result), ""]
     finished = [r for r in result.fault_trials() if r.complete()]
     verdict = "yes" if len(finished) == len(result.fault_trials()) else "NO"
     total = len(result.fault_trials())
@@ -274,6 +299,10 @@ def draw_gantt(record: TrialRecord, robots: list[str], path: Path) -> None:
         ax.axvline(event.t, color="#c23a3a", linestyle="--", linewidth=0.8)
         ax.text(event.t + 1.0, len(robots) - 0.25, f"tile {event.tile} removed", fontsize=6,
                 color="#c23a3a", va="top", ha="left")
+    for event in (e for e in record.events if e.kind == "misplaced"):
+        ax.axvline(event.t, color="#2f9e6e", linestyle=":", linewidth=0.8)
+        ax.text(event.t + 1.0, len(robots) - 0.45, f"tile {event.tile} landed wrong ({event.misplacement})",
+                fontsize=6, color="#2f9e6e", va="top", ha="left")
     for award in record.awards:
         if award.winner in rows:
             ax.plot(award.t, rows[award.winner] + 0.45, marker="v", color="#7b3fb3", markersize=7)
@@ -360,6 +389,8 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
                 for o in removal_outcomes(record)
             ],
             "false_missing_calls": false_missing_calls(record),
+            "misplacements": [o.as_dict() for o in misplacement_outcomes(record)],
+            "false_repairs": len(false_repairs(record)),
             "robot_accounts": [a.as_dict() for a in robot_accounts(record, result.structure, TimeModel())],
             "decisions": record.decisions,
         })

@@ -6,9 +6,12 @@ the phases and durations of `robot_motion.placement_phases` (`config/tiling_sim.
 on simulated time (`/clock`). The physics is the world's (`sim_world`): at the start of each phase
 the body tells the world where its base will stand when the phase ends (`/sim/motion`), and it asks
 the world before it sets out, when the picking ends (did the tile slip?) and when the placing ends
-(is the tile now in place, or which support is absent?) over `/sim/place`.
+(is the tile now in place, or which support is absent?) over `/sim/place`. It serves `remove_tile`
+as well (a repair: drive to the tile, lift it off, carry it to the drop-off), asking the world when
+it sets out and when the lifting ends (is the tile there, with nothing resting on it?).
 
-One goal at a time: a second is refused. A goal the world does not answer fails (FAILED_HARDWARE).
+One goal at a time, of either action (the robot has one arm): a second is refused. A goal the world
+does not answer fails (FAILED_HARDWARE).
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from rclpy.timer import Timer
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
-from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.action import PlaceTile, RemoveTile
 from tiling_assembly_msgs.msg import SimMotion
 from tiling_assembly_msgs.srv import SimPlace
 from tiling_ros.parameters import declare_settings
@@ -33,10 +36,11 @@ from tiling_ros.qos import SIM_MOTION
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_seconds, stamp_to_seconds
 from tiling_sim import sim_interface as sim
-from tiling_sim.robot_motion import Point2, placement_phases
+from tiling_sim.robot_motion import Phase, Point2, placement_phases, removal_phases
 from tiling_sim.sim_settings import RobotBodySettings
 
 Result = PlaceTile.Result
+Removal = RemoveTile.Result
 
 
 class SimRobot(Node):
@@ -65,23 +69,34 @@ class SimRobot(Node):
             self, PlaceTile, "place_tile", execute_callback=self.execute, goal_callback=self.accept,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
         )
+        self.removal_server = ActionServer(
+            self, RemoveTile, "remove_tile", execute_callback=self.execute_removal, goal_callback=self.accept,
+            cancel_callback=lambda _handle: CancelResponse.ACCEPT,
+        )
         self.get_logger().info(f"serving {self.resolve_topic_name('place_tile')} from "
                                f"({self.position[0]:+.2f}, {self.position[1]:+.2f})")
 
-    def accept(self, _goal: PlaceTile.Goal) -> GoalResponse:
+    def accept(self, _goal: PlaceTile.Goal | RemoveTile.Goal) -> GoalResponse:
         if self.busy:
-            self.get_logger().warn(f"{self.name} is busy: refusing a second place_tile goal")
+            self.get_logger().warn(f"{self.name} is busy: refusing a second goal (one arm, one goal at a time)")
             return GoalResponse.REJECT
+        self.busy = True  # from acceptance: a goal of the other action arriving now is refused
         return GoalResponse.ACCEPT
 
     async def execute(self, handle: Any) -> Result:
+        return await self.run_goal(handle, self.place, Result)
+
+    async def execute_removal(self, handle: Any) -> Removal:
+        return await self.run_goal(handle, self.remove, Removal)
+
+    async def run_goal(self, handle: Any, mission: Any, result_type: type[Result] | type[Removal]) -> Any:
         self.busy = True
         self.end_decision_window()
         try:
-            result, start, end = await self.place(handle)
+            result, start, end = await mission(handle)
         except WorldSilentError as error:
             self.get_logger().error(str(error))
-            result, start, end = _finish(handle.abort, Result.FAILED_HARDWARE, str(error)), 0.0, 0.0
+            result, start, end = _finish(handle.abort, result_type.FAILED_HARDWARE, str(error), result_type), 0.0, 0.0
         finally:
             self.busy = False
         self.hold_for_next_goal()  # not when shut down mid-goal: the publisher is gone
@@ -110,11 +125,7 @@ class SimRobot(Node):
         phases = placement_phases(self.motion, self.position, (goal.cache.x, goal.cache.y), tile_xy,
                                   self.footprints)
         for phase in phases:
-            handle.publish_feedback(PlaceTile.Feedback(phase=phase.phase, phase_progress=0.0,
-                                                       robot_pose=self.pose_msg(at)))
-            self.declare(at + phase.duration, busy=True, position=phase.end)
-            at = await self.time.until(at + phase.duration)
-            self.position = phase.end
+            at = await self.run_phase(handle, PlaceTile.Feedback, phase, at)
             if handle.is_cancel_requested:
                 return _finish(handle.canceled, Result.CANCELED, "canceled"), start, at
             if phase.phase == PlaceTile.Feedback.PICKING:
@@ -125,6 +136,10 @@ class SimRobot(Node):
                 answer = await self.ask(SimPlace.Request.PLACING, goal.tile_id)
                 if answer.outcome == SimPlace.Response.ALREADY_PRESENT:
                     return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason), start, at
+                if answer.outcome == SimPlace.Response.BLOCKED:
+                    result = _finish(handle.abort, Result.FAILED_BLOCKED, answer.reason)
+                    result.wrong_tiles = list(answer.wrong_tiles)
+                    return result, start, at
                 if answer.outcome != SimPlace.Response.OK:
                     result = _finish(handle.abort, Result.FAILED_PRECONDITION, answer.reason)
                     result.missing_supports = list(answer.absent_supports)
@@ -132,6 +147,50 @@ class SimRobot(Node):
         result = _finish(handle.succeed, Result.SUCCEEDED, "")
         result.placed_pose = goal.pose
         return result, start, at
+
+    async def remove(self, handle: Any) -> tuple[Removal, float, float]:
+        """One removal, phase by phase, timed and held like a placement (see `place`)."""
+        goal: RemoveTile.Goal = handle.request
+        answer = await self.ask(SimPlace.Request.REMOVING, goal.tile_id)
+        start = at = stamp_to_seconds(answer.stamp)
+        refused = self.removal_refused(handle, answer)
+        if refused is not None:
+            return refused, start, at
+        tile_xy = (goal.pose.pose.position.x, goal.pose.pose.position.y)
+        phases = removal_phases(self.motion, self.position, tile_xy, (goal.drop_off.x, goal.drop_off.y),
+                                self.footprints)
+        for phase in phases:
+            at = await self.run_phase(handle, RemoveTile.Feedback, phase, at)
+            if handle.is_cancel_requested:
+                return _finish(handle.canceled, Removal.CANCELED, "canceled", Removal), start, at
+            if phase.phase == RemoveTile.Feedback.LIFTING:
+                refused = self.removal_refused(handle, await self.ask(SimPlace.Request.LIFTED, goal.tile_id))
+                if refused is not None:
+                    return refused, start, at
+        result = _finish(handle.succeed, Removal.SUCCEEDED, "", Removal)
+        result.found_pose = goal.pose
+        return result, start, at
+
+    @staticmethod
+    def removal_refused(handle: Any, answer: SimPlace.Response) -> Removal | None:
+        """The result of a removal the world's `answer` ends; None when it may go on."""
+        if answer.outcome == SimPlace.Response.OK:
+            return None
+        if answer.outcome == SimPlace.Response.NOT_THERE:
+            return _finish(handle.succeed, Removal.ALREADY_ABSENT, answer.reason, Removal)
+        if answer.outcome == SimPlace.Response.TILE_ON_TOP:
+            result = _finish(handle.abort, Removal.FAILED_TILE_ON_TOP, answer.reason, Removal)
+            result.resting_on_it = list(answer.resting_on_it)
+            return result
+        return _finish(handle.abort, Removal.FAILED_NOT_FOUND, answer.reason, Removal)
+
+    async def run_phase(self, handle: Any, feedback_type: Any, phase: Phase, at: float) -> float:
+        """Announce `phase` to the goal's client and the world, and sleep through it; the time it ends."""
+        handle.publish_feedback(feedback_type(phase=phase.phase, phase_progress=0.0, robot_pose=self.pose_msg(at)))
+        self.declare(at + phase.duration, busy=True, position=phase.end)
+        at = await self.time.until(at + phase.duration)
+        self.position = phase.end
+        return at
 
     def hold_for_next_goal(self) -> None:
         """Keep the world's clock at this goal's end for `decision_window` s of wall time, then idle:
@@ -178,10 +237,10 @@ class WorldSilentError(RuntimeError):
     """The simulated world did not answer a step of a placement."""
 
 
-def _finish(end: Any, code: int, message: str) -> Result:
+def _finish(end: Any, code: int, message: str, result_type: type[Result] | type[Removal] = Result) -> Any:
     """End the goal (`handle.succeed`, `abort` or `canceled`) with a result of `code`."""
     end()
-    return Result(error_code=code, message=message)
+    return result_type(error_code=code, message=message)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -119,6 +119,22 @@ def placement_phases(
     ]
 
 
+def removal_phases(
+    model: MotionModel, start: Point2, tile_xy: Point2, drop_off: Point2, obstacles: Sequence[Polygon] = ()
+) -> list[Phase]:
+    """The timed phases of taking a tile off the structure (phase numbers of RemoveTile.Feedback):
+    a placement run backwards, from the structure to the drop-off, with the same arm times."""
+    target = approach_point(model, tile_xy, drop_off, obstacles)
+    return [
+        Phase(1, _drive_time(model, start, target), target),  # DRIVING_TO_STRUCTURE
+        Phase(2, model.locate_time, target),  # LOCATING_TILE
+        Phase(3, model.pick_time, target),  # LIFTING
+        Phase(4, _drive_time(model, target, drop_off), drop_off),  # DRIVING_TO_DROP_OFF
+        Phase(5, model.place_time, drop_off),  # RELEASING
+        Phase(6, model.retreat_time, drop_off),  # RETREATING
+    ]
+
+
 def drive_time_to_pose(
     model: MotionModel, start: tuple[float, float, float], goal: tuple[float, float, float]
 ) -> float:

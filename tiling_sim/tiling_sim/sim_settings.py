@@ -102,6 +102,9 @@ class WorldSettings(SimLayout):
     removal_window_start: float = setting(40.0, "s of simulated time from which removals may happen.")
     removal_window_end: float = setting(200.0, "s of simulated time by which removals happen.")
     drop_probability: float = setting(0.0, "Chance that a tile slips from the gripper during a placement.")
+    misplacements: int = setting(0, "Placements of the build that land shifted 2-5 cm or turned 15-45 degrees.")
+    wrong_tiles: int = setting(0, "Placements of the build that put down a tile of the wrong type (same height, "
+                                  "from the nearest other cache).")
     overhead_position_error: float = setting(0.05, "Largest overhead localization error, m.")
     overhead_yaw_error_deg: float = setting(10.0, "Largest overhead heading error, degrees.")
     scan_hold_limit: float = setting(
@@ -121,6 +124,8 @@ class WorldSettings(SimLayout):
             raise _bad(source, "parameters 'real_time_factor' and 'clock_step' must be positive")
         if not 0.0 <= self.drop_probability <= 1.0:
             raise _bad(source, "parameter 'drop_probability' must lie in [0, 1]")
+        if self.misplacements < 0 or self.wrong_tiles < 0:
+            raise _bad(source, "parameters 'misplacements' and 'wrong_tiles' must not be negative")
         if self.removals < 0 or self.removal_window_end < self.removal_window_start:
             raise _bad(source, "parameter 'removals' must not be negative and the removal window "
                              "must not end before it starts")

@@ -12,6 +12,11 @@ it, before anyone found it missing or it was put back; a removed tile reported m
 false positive too (the inspection claimed it was there). Beyond the paper: who found each removed
 tile first (inspection, whose call opened the auction, or a robot placing a tile on it), and stricter
 counts (removed tiles any single scan called present, present tiles any single scan called missing).
+
+Beyond the paper (its future work): placements that landed wrong (shifted, turned, a tile of the
+wrong type), when a repair of each was auctioned (its detection: two scans, or a robot that found it
+in the way) and when the right tile was in place again; and repairs auctioned for tiles that lay
+right ("false repairs").
 """
 
 from __future__ import annotations
@@ -22,15 +27,18 @@ from dataclasses import dataclass, field
 PRESENT, MISSING, OCCLUDED, MISPLACED = "present", "missing", "occluded", "misplaced"
 REASON_MISSING = 0  # AuctionAnnouncement reasons: found missing by inspection
 REASON_FOUND_MISSING = 3  # found missing by a robot placing a tile on it
+REASON_MISPLACED = 4  # a repair: the tile lies wrong
+GONE = ("removed", "taken_off")  # events that end a tile's stay on the structure
 
 
 @dataclass(frozen=True)
 class WorldEvent:
     t: float  # s of simulated time
-    kind: str  # started, place_started, placed, refused, dropped, removed, complete
+    kind: str  # place_started, placed, misplaced, refused, dropped, removed, removal_started, taken_off, complete
     tile: int = 0
     robot: str = ""
     reason: str = ""
+    misplacement: str = ""  # misplaced: shift, turn or wrong_type
 
 
 @dataclass(frozen=True)
@@ -117,7 +125,7 @@ class TrialRecord:
         for event in sorted(self.events, key=lambda e: e.t):
             if event.kind == "placed":
                 since[event.tile] = event.t
-            elif event.kind == "removed" and event.tile in since:
+            elif event.kind in GONE and event.tile in since:
                 intervals.setdefault(event.tile, []).append((since.pop(event.tile), event.t))
         for tile, start in since.items():
             intervals.setdefault(tile, []).append((start, float("inf")))
@@ -134,6 +142,51 @@ class TrialRecord:
 
     def makespan(self) -> float | None:
         return None if self.completed_at is None else self.completed_at - self.started_at
+
+
+@dataclass(frozen=True)
+class MisplacementOutcome:
+    tile: int
+    kind: str  # shift, turn, wrong_type
+    injected_at: float  # s of simulated time it landed wrong
+    detected_at: float | None  # its repair was auctioned
+    taken_off_at: float | None
+    repaired_at: float | None  # the right tile was in place
+
+    def as_dict(self) -> dict[str, object]:
+        return {"tile": self.tile, "kind": self.kind, "injected_at": self.injected_at,
+                "detected_at": self.detected_at, "repaired_at": self.repaired_at}
+
+
+def wrong_stays(record: TrialRecord) -> list[tuple[WorldEvent, float]]:
+    """Each placement that landed wrong, with the time it left the structure (inf: never)."""
+    events = sorted(record.events, key=lambda e: e.t)
+    stays = []
+    for landing in (e for e in events if e.kind == "misplaced"):
+        gone = next((e.t for e in events if e.kind in GONE and e.tile == landing.tile and e.t >= landing.t), None)
+        stays.append((landing, float("inf") if gone is None else gone))
+    return stays
+
+
+def misplacement_outcomes(record: TrialRecord) -> list[MisplacementOutcome]:
+    wrong_landings = {(e.tile, e.t) for e in record.events if e.kind == "misplaced"}
+    outcomes = []
+    for landing, gone in wrong_stays(record):
+        detected = _first_announcement(record, landing.tile, REASON_MISPLACED, landing.t, gone)
+        right = next((e.t for e in sorted(record.events, key=lambda e: e.t)
+                      if e.kind == "placed" and e.tile == landing.tile and e.t >= gone
+                      and (e.tile, e.t) not in wrong_landings), None)
+        outcomes.append(MisplacementOutcome(landing.tile, landing.misplacement, landing.t, detected,
+                                            None if gone == float("inf") else gone, right))
+    return outcomes
+
+
+def false_repairs(record: TrialRecord) -> list[dict[str, float]]:
+    """Repairs auctioned for tiles that lay right (or were not there): when, which tile."""
+    stays = wrong_stays(record)
+    return [{"t": a.t, "tile": a.tile} for a in record.announcements
+            if a.reason == REASON_MISPLACED
+            and not any(landing.tile == a.tile and landing.t <= a.t <= gone for landing, gone in stays)]
 
 
 @dataclass(frozen=True)
@@ -279,19 +332,23 @@ class Interval:
     robot: str
     start: float
     end: float
-    kind: str  # place, replace, wait, failed
+    kind: str  # place, replace, take off, wait, failed
     tile: int = 0
 
 
 def schedule(record: TrialRecord) -> list[Interval]:
-    """Per robot: placements (re-placements marked), failed attempts and waits, for the Gantt chart."""
+    """Per robot: placements (re-placements marked), take-offs of a repair, failed attempts and waits,
+    for the Gantt chart."""
     removed_before: set[int] = set()
     started: dict[str, tuple[float, int]] = {}
     intervals: list[Interval] = []
     for event in sorted(record.events, key=lambda e: e.t):
-        if event.kind == "removed":
+        if event.kind in GONE:
             removed_before.add(event.tile)
-        elif event.kind == "place_started":
+        if event.kind == "taken_off" and event.robot in started:
+            t0, tile = started.pop(event.robot)
+            intervals.append(Interval(event.robot, t0, event.t, "take off", tile))
+        elif event.kind in ("place_started", "removal_started"):
             started[event.robot] = (event.t, event.tile)
         elif event.kind in ("placed", "refused", "dropped", "already_present") and event.robot in started:
             t0, tile = started.pop(event.robot)
@@ -322,7 +379,7 @@ def duplicate_placements(record: TrialRecord) -> list[dict[str, object]]:
             if event.tile in present:
                 found.append({"t": event.t, "tile": event.tile, "robot": event.robot, "kind": "placed twice"})
             present.add(event.tile)
-        elif event.kind == "removed":
+        elif event.kind in GONE:
             present.discard(event.tile)
         elif event.kind == "already_present":
             found.append({"t": event.t, "tile": event.tile, "robot": event.robot, "kind": "place taken"})

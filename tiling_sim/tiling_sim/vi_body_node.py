@@ -19,13 +19,15 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-from geometry_msgs.msg import PoseStamped
+import numpy as np
+from geometry_msgs.msg import Pose, PoseStamped
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Header
 
 from tiling_assembly.geometry import (
+    PlacedTile,
     quaternion_from_rotation,
     rotation_from_quaternion,
     rotation_from_rpy,
@@ -161,8 +163,18 @@ class SimVi(Node):
     def scene(self, snapshot: SimSnapshot.Response) -> KinectScene:
         size = tuple(self.settings.robot_size)
         robots = [ClutterBox((p.x, p.y, size[2] / 2), size) for p in snapshot.robots]
-        return KinectScene.from_structure(self.structure, list(snapshot.present_tiles),
-                                          clutter=robots if self.settings.robots_in_view else [])
+        lying_wrong = {int(t): self.real_tile(int(t), type_name, pose) for t, type_name, pose in
+                       zip(snapshot.misplaced_tiles, snapshot.misplaced_types, snapshot.misplaced_poses, strict=True)}
+        tiles = [lying_wrong.get(t) or self.structure.tiles[t] for t in snapshot.present_tiles
+                 if t in self.structure.tiles]
+        return KinectScene(tiles, clutter=robots if self.settings.robots_in_view else [])
+
+    def real_tile(self, tile_id: int, type_name: str, pose: Pose) -> PlacedTile:
+        """A tile as it really lies (shifted, turned, or a tile of another type in its place)."""
+        shape = self.structure.tile_types[type_name].shape
+        q, p = pose.orientation, pose.position
+        return PlacedTile(tile_id, type_name, shape, rotation_from_quaternion(q.x, q.y, q.z, q.w),
+                          np.array([p.x, p.y, p.z]))
 
     def on_verdict(self, msg: TileStateArray) -> None:
         """vi_node has judged a scan (states or the reason it has none): the camera may take the next."""

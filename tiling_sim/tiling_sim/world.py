@@ -36,9 +36,10 @@ class Misplacement:
 
     @property
     def kind(self) -> str:
+        """"shift", "turn" or "wrong_type" (the names of results.json)."""
         if self.type_name is not None:
-            return "wrong type"
-        return "turned" if self.turn else "shifted"
+            return "wrong_type"
+        return "turn" if self.turn else "shift"
 
     def describe(self) -> str:
         if self.type_name is not None:
@@ -90,13 +91,16 @@ class PhysicalWorld:
         """Whether `tile_id` can be placed now, with a one-line reason when not."""
         if tile_id not in self.structure.tiles:
             return PlaceCheck.UNKNOWN_TILE, f"tile {tile_id} is not part of {self.structure.name}"
+        if tile_id in self.misplaced:
+            return PlaceCheck.BLOCKED, (f"tile {tile_id} cannot be placed: it is there already but lies wrong "
+                                        f"({self.misplaced[tile_id].describe()})")
         if tile_id in self.present:
             return PlaceCheck.ALREADY_PRESENT, f"tile {tile_id} is already in place"
         absent = self.absent_supports(tile_id)
         if absent:
             names = ", ".join(str(s) for s in absent)
             return PlaceCheck.SUPPORT_MISSING, f"tile {tile_id} cannot be placed: support {names} is not there"
-        wrong_below = [s for s in self.structure.supports.get(tile_id, ()) if s in self.misplaced]
+        wrong_below = self.wrong_supports(tile_id)
         if wrong_below:
             below = wrong_below[0]
             return PlaceCheck.BLOCKED, (f"tile {tile_id} cannot be placed: its support {below} lies wrong "
@@ -107,6 +111,24 @@ class PhysicalWorld:
             return PlaceCheck.BLOCKED, (f"tile {tile_id} cannot be placed: tile {other} lies in the way "
                                         f"({self.misplaced[other].describe()})")
         return PlaceCheck.OK, ""
+
+    def wrong_supports(self, tile_id: int) -> list[int]:
+        """Supports of `tile_id` that lie shifted or turned: nothing sits on them as planned. A tile of
+        the wrong type has the right height (the mix-up is between types of one height), so a tile
+        can rest on it, and comes off with it when it is repaired."""
+        return [s for s in self.structure.supports.get(tile_id, ())
+                if s in self.misplaced and self.misplaced[s].type_name is None]
+
+    def blocking(self, tile_id: int) -> list[int]:
+        """The tiles lying wrong that keep `tile_id` from its planned place: itself, its supports
+        lying off, or in its way."""
+        if tile_id in self.misplaced:
+            return [tile_id]
+        return sorted({*self.wrong_supports(tile_id), *self.wrong_tiles_in_the_way(tile_id)})
+
+    def resting_on(self, tile_id: int) -> list[int]:
+        """The present tiles resting directly on `tile_id`."""
+        return sorted(t for t in self.structure.supported_by[tile_id] if t in self.present)
 
     def wrong_tiles_in_the_way(self, tile_id: int) -> list[int]:
         """The misplaced tiles that take up part of the room `tile_id` needs."""
@@ -140,10 +162,7 @@ class PhysicalWorld:
 
     def removable(self) -> list[int]:
         """Present tiles with no present tile resting on them."""
-        return sorted(
-            t for t in self.present
-            if not any(above in self.present for above in self.structure.supported_by[t])
-        )
+        return sorted(t for t in self.present if not self.resting_on(t))
 
     def remove(self, tile_id: int) -> None:
         if tile_id not in self.removable():

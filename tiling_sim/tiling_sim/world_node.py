@@ -4,7 +4,8 @@ What no robot carries on board, in one process (the world host under `--hosts ne
 simulated `/clock` (running `real_time_factor` times faster than the wall clock, paced by the VI
 robot's scans, see `sim_clock` and `scan_hold`, and held at the end of an assembly robot's phase until
 its body goes on, see `body_hold`), the physical structure S_p, the faults (tiles
-removed at random times, tiles slipping from a gripper), the overhead localization of every robot
+removed at random times, tiles slipping from a gripper, landing shifted, turned or of the wrong
+type, and the repairs that take them off again), the overhead localization of every robot
 (`/<robot>/overhead_pose`, true pose plus the paper's errors of up to 5 cm and 10 degrees) and
 `/sim/events` (JSON lines for the experiment runner; `/sim/start` starts the clock).
 
@@ -32,6 +33,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Empty, String
 
 from tiling_assembly.geometry import quaternion_from_rotation
+from tiling_assembly.messages import pose_of
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.msg import SimMotion, SimScanProgress
@@ -42,7 +44,7 @@ from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_seconds, stamp_to_nanoseconds
 from tiling_sim import sim_interface as sim
 from tiling_sim.body_hold import BodyHold
-from tiling_sim.faults import FaultInjector
+from tiling_sim.faults import FaultInjector, choose_wrong_tiles
 from tiling_sim.overhead_cameras import OverheadCameras, Pose2
 from tiling_sim.scan_hold import ScanHold
 from tiling_sim.sim_clock import SimClock
@@ -55,6 +57,7 @@ OUTCOME_CODES = {
     "ok": SimPlace.Response.OK, "already present": SimPlace.Response.ALREADY_PRESENT,
     "support missing": SimPlace.Response.SUPPORT_MISSING, "unknown tile": SimPlace.Response.UNKNOWN_TILE,
     "dropped": SimPlace.Response.DROPPED, "blocked by a wrong tile": SimPlace.Response.BLOCKED,
+    "not there": SimPlace.Response.NOT_THERE, "tile on top": SimPlace.Response.TILE_ON_TOP,
 }
 
 
@@ -68,6 +71,8 @@ class SimWorld(Node):
         structure = load_structure(s.structure_file)
         faults = FaultInjector.scheduled(s.seed, s.removals, (s.removal_window_start, s.removal_window_end),
                                          s.drop_probability)
+        faults.misplaced_tiles, faults.wrong_type_tiles = choose_wrong_tiles(
+            s.seed, structure, s.misplacements, s.wrong_tiles)
         self.referee = WorldReferee(PhysicalWorld(structure), faults)
         self.robots = s.team
         starts: dict[str, Pose2] = {r: (x, y, 0.0) for r, (x, y) in s.robot_starts(structure).items()}
@@ -91,10 +96,12 @@ class SimWorld(Node):
         self.create_subscription(Empty, sim.START, self.on_start, SIM_EVENTS)
         self.create_timer(s.clock_step, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.event("started", robots=self.robots, structure=structure.name,
-                   removal_times=[round(t, 1) for t in faults.removal_times])
+                   removal_times=[round(t, 1) for t in faults.removal_times],
+                   misplaced_tiles=sorted(faults.misplaced_tiles), wrong_type_tiles=sorted(faults.wrong_type_tiles))
         self.get_logger().info(
             f"simulating {structure.name} with {', '.join(self.robots)} and the VI robot at "
-            f"{s.real_time_factor:g}x real time; {len(faults.removal_times)} removals scheduled"
+            f"{s.real_time_factor:g}x real time; {len(faults.removal_times)} removals, {s.misplacements} "
+            f"misplacements and {s.wrong_tiles} wrong tiles scheduled"
         )
 
     # --- simulated time -----------------------------------------------------------------------
@@ -157,19 +164,22 @@ class SimWorld(Node):
         now = self.now()  # the events carry the time the step reached the world
         response.stamp = stamp_from_seconds(now)
         steps = {SimPlace.Request.STARTING: self.referee.starting, SimPlace.Request.PICKED: self.referee.picked,
-                 SimPlace.Request.PLACING: self.referee.placing}
+                 SimPlace.Request.PLACING: self.referee.placing, SimPlace.Request.REMOVING: self.referee.removing,
+                 SimPlace.Request.LIFTED: self.referee.lifted}
         step = steps.get(request.step)
         if step is None or request.robot not in self.robots:
             response.outcome = SimPlace.Response.UNKNOWN_TILE
             response.reason = f"/sim/place: no step {request.step} for robot '{request.robot}'"
             return response
-        if request.step == SimPlace.Request.STARTING:  # the placement starts now: its phases count from here
+        if request.step in (SimPlace.Request.STARTING, SimPlace.Request.REMOVING):  # its phases count from here
             self.body_hold.busy_until(request.robot, now)
         answer: StepAnswer = step(request.robot, int(request.tile_id))
         self.publish_events(answer.events)
         response.outcome = OUTCOME_CODES[answer.outcome.value]
         response.reason = answer.reason
         response.absent_supports = answer.absent_supports
+        response.wrong_tiles = answer.wrong_tiles
+        response.resting_on_it = answer.resting_on_it
         return response
 
     def on_snapshot(self, request: SimSnapshot.Request, response: SimSnapshot.Response) -> SimSnapshot.Response:
@@ -179,7 +189,11 @@ class SimWorld(Node):
         if request.hold_clock:
             self.hold.hold(stamp_to_nanoseconds(stamp), time.monotonic())
         response.stamp = stamp
-        response.present_tiles = sorted(self.referee.world.present)
+        world = self.referee.world
+        response.present_tiles = sorted(world.present)
+        response.misplaced_tiles = sorted(world.misplaced)
+        response.misplaced_types = [world.actual(t).type_name for t in response.misplaced_tiles]
+        response.misplaced_poses = [pose_of(world.actual(t)) for t in response.misplaced_tiles]
         response.robots = [Point(x=pose[0], y=pose[1], z=0.0)
                            for robot, pose in self.whereabouts.poses.items() if robot in self.robots]
         for name in self.overhead_pubs:  # the overhead cameras see every robot at the scan's time

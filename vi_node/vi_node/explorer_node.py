@@ -6,7 +6,9 @@ A thin adapter around `exploration.Exploration` and `viewpoint.rank_viewpoints`.
 priority), `/auction/announcements`
 (tiles no longer expected), `/tile_states` (what the scans judged). Out: goals to the base's
 `navigate_to` action. After each arrival it waits for the first tile states of a scan taken there
-(vi_node answers every scan: tile states, or why it has none), then chooses again.
+(vi_node answers every scan: tile states, or why it has none), then chooses again. The other
+robots' overhead poses (`other_robots`, as vi_node follows them) tell it what they hide and where it
+cannot stand: a robot parked beside the structure blinds every viewpoint behind it.
 """
 
 from __future__ import annotations
@@ -44,14 +46,19 @@ from vi_node.exploration import (
     ring_viewpoints,
 )
 from vi_node.inspection_settings import InspectionSettings
+from vi_node.other_robots import OtherRobots
+from vi_node.pose_matching import TeamPoses
 from vi_node.pose_prior import CameraMount, OverheadPose
 from vi_node.raycast import VirtualScene
+from vi_node.robot_mask import RobotBoxes
 from vi_node.viewpoint import rank_viewpoints
 
 # the camera and the evidence rules are vi_node's (the same names in config/vi_node.yaml)
 _CAMERA = InspectionSettings()
 _EVIDENCE = EvidenceSettings()
 STATES = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING, TileState.OCCLUDED: OCCLUDED}
+ROBOT_BOXES = _CAMERA.robot_mask()
+ROBOT_POSE_AGE = 60.0  # s: a robot's latest overhead pose stands for it that long (robots wait long)
 
 
 @dataclass(frozen=True)
@@ -78,6 +85,8 @@ class ExplorerSettings:
         5.0, "s of wall-clock time to wait at a viewpoint for a scan's verdict (vi_node answers every scan, with "
         "states or the reason there are none: this only covers a silent vi_node).")
     travel_cost: float = setting(0.5, "Priority points one metre of driving costs.")
+    other_robots: str = setting(_CAMERA.other_robots, "Robots whose overhead_pose to follow, comma-separated "
+                                "(empty: every one that appears).")
 
 
 class ExplorerNode(Node):
@@ -114,6 +123,11 @@ class ExplorerNode(Node):
         self.arrived_wall = 0.0  # s (steady clock) of the arrival
         self.driving = False
         self.repeats = RepeatFilter()
+        self.team = TeamPoses()
+        self.other_robots = OtherRobots(self, str(settings.other_robots), self.team.add,
+                                        lambda line: self.get_logger().warn(line, throttle_duration_sec=10.0))
+        self.other_robots.follow()
+        self.create_timer(1.0, self.other_robots.follow)
 
         self.navigate = ActionClient(self, NavigateTo, "navigate_to")
         self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
@@ -201,9 +215,11 @@ class ExplorerNode(Node):
         low = np.min([t.aabb[0] for t in tiles], axis=0)
         high = np.max([t.aabb[1] for t in tiles], axis=0)
         poses = [OverheadPose(*c) for c in self.candidates]
+        robots = self.team.at(self.get_clock().now().nanoseconds, int(ROBOT_POSE_AGE * 1e9))
         ranked = rank_viewpoints(self.scene, low, high, self.camera, self.mount, poses,
                                  self.exploration.priority(now), self.evidence,
-                                 min_range=self.range[0], max_range=self.range[1])
+                                 min_range=self.range[0], max_range=self.range[1],
+                                 robots=RobotBoxes(robots, ROBOT_BOXES) if robots else None)
         gain_of = {(r.pose.x, r.pose.y, r.pose.yaw): r.score for r in ranked}
         gains = [gain_of[(p.x, p.y, p.yaw)] for p in poses]
         index, score = self.exploration.choose(self.candidates, here, now, gains)

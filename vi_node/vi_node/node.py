@@ -49,13 +49,14 @@ from tiling_assembly_msgs.msg import (
 )
 from tiling_ros.parameters import declare_settings
 from tiling_ros.point_clouds import CloudError, cloud_from_msg
-from tiling_ros.qos import LATCHED, OTHER_ROBOT_POSES, sensor_stream
+from tiling_ros.qos import LATCHED, sensor_stream
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_to_nanoseconds
 from vi_node.classify import TileState as State
 from vi_node.fusion import TileFusion, fuse_scan
 from vi_node.inspection_settings import InspectionSettings, SettingsError, parse_tile_ids
 from vi_node.misplacement import moved_tile
+from vi_node.other_robots import OtherRobots
 from vi_node.pipeline import InspectionPipeline, InspectionStoppedError
 from vi_node.pose_matching import PoseBuffer, TeamPoses
 from vi_node.pose_prior import OverheadPose
@@ -102,7 +103,6 @@ class ViNode(Node):
         self.fusion = TileFusion()
         self.poses = PoseBuffer()
         self.team = TeamPoses()
-        self.robot_subscriptions: dict[str, Any] = {}
         # the latest scan not yet inspected, handed from the cloud callback to the inspection thread
         self.pending: PointCloud2 | None = None
         self.pending_since = 0.0
@@ -128,8 +128,12 @@ class ViNode(Node):
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         if self.settings.sensor_reliability == "auto":
             self.create_timer(0.5, self._match_sensor_publishers, callback_group=state)
-        self._follow_other_robots()
-        self.create_timer(1.0, self._follow_other_robots, callback_group=state)
+        self.other_robots = OtherRobots(
+            self, self.settings.other_robots, self.team.add, lambda line: self._diagnose(DiagnosticStatus.WARN, line),
+            callback_group=state,
+        )
+        self.other_robots.follow()
+        self.create_timer(1.0, self.other_robots.follow, callback_group=state)
         self._update_expected()
         self._apply_news()
         self.inspection_thread.start()
@@ -250,35 +254,6 @@ class ViNode(Node):
                 event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
             )
             self.sensor_subscriptions[topic] = (subscription, wanted)
-
-    def _follow_other_robots(self) -> None:
-        """Subscribe the overhead pose of every other robot: `other_robots`, or every
-        `/<robot>/overhead_pose` topic in the graph besides this robot's own."""
-        own = self.resolve_topic_name("overhead_pose")
-        names = [n.strip() for n in self.settings.other_robots.split(",") if n.strip()]
-        if not names:
-            names = [
-                topic.split("/")[1]
-                for topic, _ in self.get_topic_names_and_types()
-                if topic.endswith("/overhead_pose") and topic.count("/") == 2 and topic != own
-            ]
-        for name in names:
-            if name not in self.robot_subscriptions:
-                self.robot_subscriptions[name] = self.create_subscription(
-                    PoseStamped,
-                    f"/{name}/overhead_pose",
-                    lambda msg, name=name: self._on_robot_pose(name, msg),
-                    OTHER_ROBOT_POSES,
-                    callback_group=self.state_group,
-                )
-
-    def _on_robot_pose(self, name: str, msg: PoseStamped) -> None:
-        p, q = msg.pose.position, msg.pose.orientation
-        try:
-            pose = OverheadPose.from_quaternion(p.x, p.y, q.x, q.y, q.z, q.w)
-            self.team.add(name, stamp_to_nanoseconds(msg.header.stamp), pose)
-        except ValueError:
-            self._diagnose(DiagnosticStatus.WARN, f"ignored an overhead pose of {name} with a zero quaternion")
 
     def _on_pose(self, msg: PoseStamped) -> None:
         p, q = msg.pose.position, msg.pose.orientation

@@ -1,0 +1,181 @@
+"""The M3 robot's remove_tile action against the three device emulators, every part a real process
+(as test_m3_robot.py, whose set-up this mirrors): a long rectangle lies on the structure shifted and
+turned from where tile 3 should be; the robot finds it with the laser, lifts it and leaves it at the
+drop-off. One goal at a time across place_tile and remove_tile: the robot has one arm."""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from typing import Any
+
+import pytest
+from processes import Emulator, NodeProcess
+from rclpy.action import ActionClient
+from ros_probe import OverheadCamera, probe_health, shared_probe, wait_for_future
+
+from hardware_drivers import dynamixel_protocol as dx
+from hardware_drivers.remove_tile_mission import RemovalPhase
+from tiling_assembly_msgs.action import PlaceTile, RemoveTile
+
+pytestmark = pytest.mark.ros
+
+START = (0.0, -0.45, 1.2)  # the base's true pose at power-up (m, m, rad)
+BELIEVED = (0.0, 0.0, 0.0, 0.0)  # tile 3 of paper_14: x, y, z, yaw
+TILE_ON_STRUCTURE = (0.03, -0.02, 0.5)  # where the tile really lies (x, y, yaw): 3.6 cm and 29 deg off
+DROP_OFF = (0.3, -0.5)
+FAR = (1.5, 1.5)  # a goal this far keeps the robot driving
+LASER_MOUNT = "0.16,0.0,0.0"
+FAST_SERVOS = ("-p", "joint_max_velocities:=[3.0,3.0,3.0,3.0,3.0,3.0]")
+FAST = (*FAST_SERVOS, "-p", "arm_speed:=2.5", "-p", "max_linear:=0.3", "-p", "max_angular:=1.5")
+GRIPPER_ON_TILE = dx.radians_to_position(-0.2)
+ARM_PARAMS = ("config/hardware_drivers.yaml", "config/crustcrawler_arm.yaml")
+
+
+@pytest.fixture(scope="module")
+def m3(tmp_path_factory: pytest.TempPathFactory):
+    directory = tmp_path_factory.mktemp("m3_remove")
+    pose_file = directory / "true_pose"
+    emulators: list[Emulator] = []
+    nodes: list[NodeProcess] = []
+    camera = None
+    clients: list[ActionClient] = []
+    try:
+        emulators.append(Emulator("create", directory / "create", "--pose-file", str(pose_file),
+                                  "--start-pose", ",".join(str(v) for v in START)))
+        emulators.append(Emulator("dynamixel", directory / "arm", "--stall", f"6:{GRIPPER_ON_TILE}"))
+        emulators.append(Emulator("urg", directory / "urg", "--robot-pose-file", str(pose_file),
+                                  "--laser-mount", LASER_MOUNT,
+                                  "--tile-pose", ",".join(str(v) for v in TILE_ON_STRUCTURE), "--noise", "0.003"))
+        nodes += [
+            NodeProcess("create_base", directory, "-p", f"port:={directory / 'create'}"),
+            NodeProcess("crustcrawler_arm", directory, "-p", f"port:={directory / 'arm'}", *FAST_SERVOS,
+                        params_files=ARM_PARAMS),
+            NodeProcess("hokuyo_urg", directory, "-p", f"port:={directory / 'urg'}"),
+            NodeProcess("m3_robot", directory, "-p", "structure_file:=config/structures/paper_14.yaml",
+                        "-p", f"laser_mount:=[{LASER_MOUNT}]", *FAST, params_files=ARM_PARAMS),
+        ]
+        camera = OverheadCamera(pose_file, "/robot1/overhead_pose")
+        clients = [ActionClient(shared_probe().node, RemoveTile, "/robot1/remove_tile"),
+                   ActionClient(shared_probe().node, PlaceTile, "/robot1/place_tile")]
+        for client in clients:
+            assert client.wait_for_server(timeout_sec=30.0), f"{client._action_name} server did not come up"
+        for node in nodes[:3]:
+            node.wait_for_log("connected to the", timeout=20.0)
+        yield {"create": emulators[0], "arm": emulators[1], "m3_robot": nodes[3],
+               "remove": clients[0], "place": clients[1]}
+    finally:
+        if camera is not None:
+            camera.close()
+        for client in clients:
+            shared_probe().retire(client)
+        for node in nodes:
+            node.stop()
+        for emulator in emulators:
+            emulator.close()
+            (directory / f"{emulator.kind}_emulator.log").write_text(
+                "".join(f"{stamp:.6f} {text}\n" for stamp, text in emulator.lines))
+    for node in nodes:
+        assert "Traceback" not in node.log(), f"{node.name} printed a traceback:\n{node.log()}"
+
+
+def _removal(tile_type: str = "long_rectangle", at: tuple[float, float] = BELIEVED[:2]) -> RemoveTile.Goal:
+    goal = RemoveTile.Goal(tile_id=3, tile_type=tile_type)
+    goal.pose.header.frame_id = "map"
+    goal.pose.pose.position.x, goal.pose.pose.position.y = at
+    goal.pose.pose.position.z = BELIEVED[2]
+    goal.pose.pose.orientation.z, goal.pose.pose.orientation.w = math.sin(BELIEVED[3] / 2), math.cos(BELIEVED[3] / 2)
+    goal.drop_off.x, goal.drop_off.y = DROP_OFF
+    return goal
+
+
+def _placement(cache: tuple[float, float]) -> PlaceTile.Goal:
+    goal = PlaceTile.Goal(tile_id=3, tile_type="long_rectangle")
+    goal.pose.header.frame_id = "map"
+    goal.cache.x, goal.cache.y = cache
+    return goal
+
+
+def _send(client: ActionClient, goal: Any, feedback: list | None = None) -> Any:
+    """The goal's handle; sent again when no response came (a goal response can be lost; the
+    server frees a goal that never started after its grace, see GoalSlot)."""
+    for _attempt in range(3):
+        on_feedback = None if feedback is None else (lambda f: feedback.append(f.feedback))
+        sent = client.send_goal_async(goal, feedback_callback=on_feedback)
+        deadline = time.monotonic() + 8.0
+        while not sent.done() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        if sent.done():
+            return sent.result()
+    raise AssertionError(f"goal not answered in three attempts ({probe_health()})")
+
+
+def _wait_for(condition, timeout: float, what: str) -> None:  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"{what} did not come within {timeout} s ({probe_health()})"
+        time.sleep(0.02)
+
+
+def _last_drive_stops(create: Emulator, within: float = 2.0) -> bool:
+    """Whether the Create's last drive command is a stop, within `within` s (the stop travels by
+    another way than the action's result)."""
+    deadline = time.monotonic() + within
+    while True:
+        drives = [text for _, text in create.lines if text.startswith("drive ")]
+        if drives and drives[-1].startswith("drive 0 0"):
+            return True
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+
+
+def test_remove_tile_finds_the_shifted_tile_and_leaves_it_at_the_drop_off(m3) -> None:
+    feedback: list[RemoveTile.Feedback] = []
+    handle = _send(m3["remove"], _removal(), feedback)
+    assert handle.accepted
+    result = wait_for_future(handle.get_result_async(), 90.0, "the removal").result
+    assert result.error_code == RemoveTile.Result.SUCCEEDED, result.message
+    assert result.message == ""
+    phases = [f.phase for f in feedback]
+    assert [p for i, p in enumerate(phases) if i == 0 or phases[i - 1] != p] == list(RemovalPhase)
+    # found where it really lies, not where it was believed to be
+    found = result.found_pose
+    assert found.header.frame_id == "map"
+    assert math.hypot(found.pose.position.x - TILE_ON_STRUCTURE[0], found.pose.position.y - TILE_ON_STRUCTURE[1]) < 0.01
+    found_yaw = 2 * math.atan2(found.pose.orientation.z, found.pose.orientation.w)
+    assert abs(math.remainder(found_yaw - TILE_ON_STRUCTURE[2], math.pi)) < math.radians(5)
+    assert result.duration > 0
+    deviation = re.search(r"tile 3 lies ([\d.]+) cm and (\d+) deg from its believed pose", m3["m3_robot"].log())
+    assert deviation, m3["m3_robot"].log()
+    assert abs(float(deviation[1]) - 3.6) < 1.0 and abs(float(deviation[2]) - 29) <= 5
+    # the gripper closed on it, and the robot left it at the drop-off and backed away
+    assert any(text.startswith(f"goal 6 {dx.radians_to_position(-0.6)}") for _, text in m3["arm"].lines)
+    x, y, _ = m3["create"].true_pose()
+    assert 0.32 < math.hypot(x - DROP_OFF[0], y - DROP_OFF[1]) < 0.32 + 0.10 + 0.05
+    assert _last_drive_stops(m3["create"])
+
+
+@pytest.mark.parametrize(("running", "refused"), [("remove", "place"), ("place", "remove")])
+def test_one_goal_at_a_time_across_remove_tile_and_place_tile(m3, running: str, refused: str) -> None:
+    goals = {"remove": _removal(at=FAR), "place": _placement(FAR)}
+    feedback: list = []
+    handle = _send(m3[running], goals[running], feedback)
+    assert handle.accepted
+    _wait_for(lambda: bool(feedback) and feedback[-1].phase_progress > 0.05, 20.0, "the base driving")
+    assert not _send(m3[refused], goals[refused]).accepted
+    handle.cancel_goal_async()
+    result = wait_for_future(handle.get_result_async(), 20.0, "the canceled goal").result
+    assert (result.error_code, result.message) == (type(result).CANCELED, "canceled")
+    assert _last_drive_stops(m3["create"])
+    noun = {"remove": "removal", "place": "placement"}
+    assert f"{refused}_tile goal for tile 3 rejected: tile 3's {noun[running]} is under way" in m3["m3_robot"].log()
+
+
+def test_a_removal_of_an_unknown_tile_type_fails_with_one_line(m3) -> None:
+    handle = _send(m3["remove"], _removal(tile_type="hexagon"))
+    assert handle.accepted
+    result = wait_for_future(handle.get_result_async(), 10.0, "the removal").result
+    assert result.error_code == RemoveTile.Result.FAILED_NOT_FOUND
+    assert result.message == "unknown tile type 'hexagon' (no footprint from /structure or structure_file)"
