@@ -41,6 +41,8 @@ class MisplacementSettings:
     significance: float = 8.0  # a fitted shift must stand this many sigmas clear of zero ...
     turn_significance: float = 7.0  # ... and a fitted turn this many
     kept_share: float = 0.1  # a tile that slipped still covers part of its place: this share of its pixels agree
+    other_shape_share: float = 0.3  # not its shape: at least this share of its decisive pixels agree, and
+    other_shape_pixels: int = 30  # ... this share see through it, of at least this many decisive pixels
 
 
 @dataclass(frozen=True)
@@ -104,6 +106,19 @@ def confirmed_by_pixels(
     shifted = math.hypot(fit.offset[0], fit.offset[1]) >= 0.6 * settings.shift
     needed = max(1.0, 0.05 * (agree + disagree)) if shifted else 1.0
     return disagree >= needed
+
+
+def other_shape(agree: int, against: int, settings: MisplacementSettings) -> bool:
+    """Whether a tile's place holds something of another shape (a tile of the wrong type; beyond
+    the paper, its future work): a good share of its pixels find its surface where expected, and a
+    good share see through where the planned tile would be, which no motion of the planned tile
+    explains. A tile in place has its pixels agree almost everywhere, a missing one almost nowhere;
+    either at the edges of a view can split its pixels, but not both halves at once on this many."""
+    decisive = agree + against
+    if decisive < settings.other_shape_pixels:
+        return False
+    share = settings.other_shape_share * decisive
+    return agree >= share and against >= share
 
 
 def assess(scan: ScanPoints, context: PlacementContext, settings: MisplacementSettings) -> dict[int, TileFit]:

@@ -42,7 +42,7 @@ from vi_node.expected_returns import expect_returns
 from vi_node.floor import FloorFit, FloorSettings, correct_pose, fit_floor
 from vi_node.icp import Correspondences, IcpResult, IcpSettings, point_to_plane_icp
 from vi_node.inspection_settings import InspectionSettings
-from vi_node.misplacement import PlacementContext, ScanPoints, assess, confirmed_by_pixels
+from vi_node.misplacement import PlacementContext, ScanPoints, assess, confirmed_by_pixels, other_shape
 from vi_node.patches import PlanarPatches
 from vi_node.periodicity import periodic_shifts
 from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior, pose_error
@@ -646,7 +646,8 @@ class InspectionPipeline:
         self, points: ScanPoints, pose: Array, result: ScanResult, suspects: Sequence[int] = ()
     ) -> None:
         """Per-tile residuals, and MISPLACED for tiles whose points a planar motion explains better
-        and whose pixels agree (`misplacement`)."""
+        and whose pixels agree, or whose pixels say something of another shape lies there
+        (`misplacement`)."""
         model = self.model
         fits = assess(
             points,
@@ -675,6 +676,10 @@ class InspectionPipeline:
                 result.misplacement[tile.tile_id] = (misplaced, fit.offset, fit.residual)
             if misplaced:
                 tile.state, tile.offset = TileState.MISPLACED, fit.offset
+            elif tile.state is TileState.OCCLUDED and other_shape(
+                    tile.physical, tile.see_through + tile.blank, self.misplacement_settings):
+                tile.state, tile.offset = TileState.MISPLACED, (0.0, 0.0, 0.0)
+                result.misplacement[tile.tile_id] = (True, tile.offset, fit.residual)
 
     def _judge_again_without_moved_tiles(self, scan: _Scan, level: Array, first: ScanResult) -> ScanResult:
         """A misplaced tile pulls the alignment towards where it lies: search and align once more,
