@@ -195,12 +195,16 @@ class AssemblyNode(Node):
             self.step()
 
     def on_report(self, msg: PlacementReport) -> None:
-        if msg.outcome != PlacementReport.OUTCOME_PLACED:
+        if msg.outcome not in (PlacementReport.OUTCOME_PLACED, PlacementReport.OUTCOME_REMOVED):
             return
+        placed = msg.outcome == PlacementReport.OUTCOME_PLACED
         if self.executor_state is None:
-            self.early_news.append((True, msg.tile_id))
+            self.early_news.append((placed, msg.tile_id))
             return
-        self.executor_state.note_placed(msg.tile_id)
+        if placed:
+            self.executor_state.note_placed(msg.tile_id)
+        else:  # a repair took it off: it holds nothing up until it is back
+            self.executor_state.note_missing(msg.tile_id)
         self.step()
 
     def on_overhead_pose(self, msg: PoseStamped) -> None:

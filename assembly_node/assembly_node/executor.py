@@ -87,6 +87,10 @@ class PlanExecutor:
         self.placed.add(tile_id)
         if tile_id in self.remaining:  # e.g. reassigned and placed by another robot
             self.remaining.remove(tile_id)
+        self._unblock(tile_id)
+
+    def _unblock(self, tile_id: int) -> None:
+        """`tile_id` is in place as planned now: nothing waits for its repair any more."""
         for waiting in list(self.blocked_by):
             self.blocked_by[waiting].discard(tile_id)
             if not self.blocked_by[waiting]:
@@ -187,6 +191,7 @@ class PlanExecutor:
         if success:
             self.to_take_off.remove(tile_id)
             self.placed.discard(tile_id)
+            self.blocked_by.pop(tile_id, None)  # it lay wrong in its own place: the place is free now
             self.removal_attempts.pop(tile_id, None)
             return Outcome.REMOVED
         on_top = [t for t in resting_on_it if t not in self.to_take_off]
@@ -226,6 +231,7 @@ class PlanExecutor:
             return Outcome.WAITS_FOR_REPAIR
         if success:
             self.placed.add(tile_id)
+            self._unblock(tile_id)
             self.placed_by_me.append(tile_id)
             self.attempts.pop(tile_id, None)
             return Outcome.PLACED

@@ -193,7 +193,8 @@ class AuctionNode(Node):
         self.announce_pub.publish(msg)
         self.announcements[auction.auction_id] = msg
         self.repeater.sent(auction.auction_id, time.monotonic())
-        taken_off = f"; {', '.join(map(str, resting))} rest on it and come off first" if resting else ""
+        verbs = "rests on it and comes" if len(resting) == 1 else "rest on it and come"
+        taken_off = f"; {', '.join(map(str, resting))} {verbs} off first" if resting else ""
         self.decide(
             f"auction {auction.auction_id} opened for tile {tile_id} ({tile.type_name}, {REASONS[reason]}{taken_off}); "
             f"bidders: {', '.join(sorted(auction.invited))}"

@@ -212,3 +212,16 @@ def test_a_tile_blocked_by_a_wrong_tile_waits_for_its_repair_without_using_an_at
     assert state.next_step() == Step(StepKind.PLACE, 9)
     state.start(9)
     assert state.finish(9, True) is Outcome.PLACED  # its one attempt was still there
+
+
+def test_a_tile_found_lying_wrong_in_its_own_place_is_placed_right_after_its_repair() -> None:
+    state = executor([13])
+    for tile in (1, 2, 3, 6, 4, 9, 11):
+        state.note_placed(tile)
+    state.start(13)  # won after a scan called it missing: it is there, shifted
+    assert state.finish(13, False, wrong_tiles=[13]) is Outcome.WAITS_FOR_REPAIR
+    state.award_repair(13, [])  # this robot won its repair
+    state.start_removal(13)
+    state.finish_removal(13, True)
+    place(state, 13)
+    assert state.next_step().kind is StepKind.DONE and not state.blocked_by

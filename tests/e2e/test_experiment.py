@@ -125,6 +125,28 @@ def test_killed_robot_has_its_tiles_finished_by_the_other(experiment) -> None:  
     assert len({p["tile"] for p in trial["placements"]}) == 14
 
 
+def test_a_shifted_tile_and_a_wrong_tile_under_another_are_found_and_repaired(experiment) -> None:  # type: ignore[no-untyped-def]
+    # seed 13 (trial seed 14): square 10 lands shifted 3.3 cm, a long rectangle's place 11 gets an
+    # octagon, and triangle 13 is put on it before inspection can tell: the repair takes 13 off first
+    result, data = experiment("--trials", "1", "--removals", "0", "--misplacements", "1", "--wrong-tiles", "1",
+                              "--seed", "13", timeout=420.0)
+    trial = _only_trial(data)
+    assert trial["complete"], result.stdout[-2000:] + result.stderr[-2000:]
+    by_tile = {m["tile"]: m for m in trial["misplacements"]}
+    assert {(tile, m["kind"]) for tile, m in by_tile.items()} == {(10, "shift"), (11, "wrong_type")}
+    for m in by_tile.values():
+        assert m["injected_at"] < m["detected_at"] < m["repaired_at"], m
+    assert trial["false_repairs"] == 0  # no tile in place was ever repaired
+    repairs = [d for d in trial["decisions"] if "lying wrong: repair" in d]
+    assert len(repairs) == 2 and all(" for tile 10 " in d or " for tile 11 " in d for d in repairs)
+    placed_13 = [p["t"] for p in trial["placements"] if p["tile"] == 13]
+    if any("13 rests on it and comes off first" in d for d in repairs):
+        # put back after the right tile 11 went in: both end correct (the world says complete)
+        assert len(placed_13) == 2 and placed_13[1] > by_tile[11]["repaired_at"]
+    assert trial["duplicate_placements"] == [] and trial["lost_placements"] == []
+    assert "Placements that landed wrong, and their repair" in result.stdout
+
+
 def test_robot_that_never_bids_does_not_block_an_auction(experiment) -> None:  # type: ignore[no-untyped-def]
     result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3", "--silent-robot", "robot2")
     trial = _only_trial(data)

@@ -27,6 +27,7 @@ from tiling_assembly.contacts import separation
 from tiling_assembly.geometry import PlacedTile, rotation_from_rpy
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure import Structure
+from tiling_sim.faults import SHIFT_RANGE, TURN_RANGE, mistaken_type
 from tiling_sim.kinect import ClutterBox, KinectScene, camera_pose
 
 Array = NDArray[np.float64]
@@ -171,15 +172,22 @@ def misplace_tile(
     tile_id: int,
     others: Iterable[int],
     rng: np.random.Generator,
-    shift: tuple[float, float] = (0.02, 0.03),
-    turn: tuple[float, float] = (math.radians(15), math.radians(30)),
+    shift: tuple[float, float] = SHIFT_RANGE,
+    turn: tuple[float, float] = TURN_RANGE,
     kind: str = "shift",
     attempts: int = 50,
 ) -> PlacedTile | None:
-    """The tile shifted (by shift[0]..shift[1] m) or turned (by turn[0]..turn[1] rad about its centroid)
-    without overlapping the `others`; None if no such pose was found."""
+    """The tile shifted (by shift[0]..shift[1] m), turned (by turn[0]..turn[1] rad about its centroid)
+    or, `kind` "wrong_type", a tile of the type a robot takes for it by mistake in its place, without
+    overlapping the `others`; None if no such pose (or no such type) was found."""
     tile = structure.tiles[tile_id]
     neighbours = [structure.tiles[i] for i in others if i != tile_id]
+    if kind == "wrong_type":
+        other = mistaken_type(structure, tile.type_name)
+        if other is None:
+            return None
+        swapped = PlacedTile(tile.tile_id, other, structure.tile_types[other].shape, tile.rotation, tile.position)
+        return swapped if all(separation(swapped, n) > -1e-4 for n in neighbours) else None
     for _ in range(attempts):
         if kind == "shift":
             angle = rng.uniform(0, 2 * math.pi)

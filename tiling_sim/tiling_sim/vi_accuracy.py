@@ -246,13 +246,17 @@ class MisplacementReport:
     otherwise: dict[str, int] = field(default_factory=lambda: defaultdict(int))  # state name when not flagged
     present_judged: int = 0  # present tiles in views that were classified
     present_flagged: int = 0
+    scenes: dict[str, int] = field(default_factory=lambda: defaultdict(int))  # kind -> scenes seeing it at all
+    caught: dict[str, int] = field(default_factory=lambda: defaultdict(int))  # ... flagged in one of its views
+    called_present: dict[str, int] = field(default_factory=lambda: defaultdict(int))  # views calling it present
 
     def format(self, title: str = "misplaced tiles (default mode, single views):") -> str:
         lines = [title]
         for kind in sorted(self.views):
             lines.append(
                 f"  {kind:38s} views that see one: {self.views[kind]:4d}   flagged MISPLACED: "
-                f"{percent(self.flagged[kind], self.views[kind])}"
+                f"{percent(self.flagged[kind], self.views[kind])}   flagged in some view of the scene: "
+                f"{self.caught[kind]}/{self.scenes[kind]}   views calling it present: {self.called_present[kind]}"
             )
         if self.otherwise:
             lines.append(
@@ -372,8 +376,9 @@ def misplacement_trial(
     condition: Condition,
     views: int = 3,
 ) -> None:
-    """One scene with a tile shifted 2-3 cm or turned 15-30 degrees; every view judged alone."""
-    kind = str(rng.choice(["shift", "turn"]))
+    """One scene with a tile shifted 2-5 cm, turned 15-45 degrees or of the wrong type (the faults of
+    `tiling_sim.faults`); every view judged alone."""
+    kind = str(rng.choice(["shift", "turn", "wrong_type"]))
     world = draw_world(
         built, replace(condition, clutter=0.0), rng, simulator, removals=(0, 1), partial=0.3, misplacements=1,
         misplace_kind=kind,
@@ -382,9 +387,10 @@ def misplacement_trial(
     if not scene.misplaced:
         return
     moved = next(iter(scene.misplaced))
-    how = "shifted 2-3 cm" if kind == "shift" else "turned 15-30 deg"
+    how = {"shift": "shifted 2-5 cm", "turn": "turned 15-45 deg", "wrong_type": "of the wrong type"}[kind]
     label = f"{type_label(built, built.tiles[moved].type_name)} {how}"
     pipeline.set_expected(scene.expected)
+    seen = flagged = False
     for _ in range(views):
         view = random_view(scene.centre, rng, world.view_settings, scene.robots)
         cloud, labels = world.simulator.scan_labelled(scene.kinect_scene, view.camera)
@@ -398,10 +404,15 @@ def misplacement_trial(
         if int(np.count_nonzero(labels == moved)) < 40:
             continue  # this view does not see the misplaced tile
         report.views[label] += 1
+        seen = True
         if states[moved].state == TileState.MISPLACED:
             report.flagged[label] += 1
+            flagged = True
         else:
             report.otherwise[states[moved].state.label] += 1
+            report.called_present[label] += states[moved].state == TileState.PRESENT
+    report.scenes[label] += seen
+    report.caught[label] += flagged
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
