@@ -116,11 +116,18 @@ def test_wrong_landings_are_detected_when_their_repair_is_auctioned_and_repaired
         Announcement(96.0, 3, 8, REASON_MISPLACED),  # 8 lay right: a false repair
         Announcement(97.0, 4, 6, REASON_MISPLACED),  # 6 was right again by then: another
     ]
+    r.decisions = ["tile 6 lies wrong (robot1 found it in the way when placing tile 9): repairing it",
+                   "auction 1 opened for tile 6 (trapezoid, lying wrong: repair); bidders: robot1",
+                   "tile 6 lies wrong (scans from 2 camera positions say misplaced, ...): repairing it",
+                   "tile 8 lies wrong (scans from 2 camera positions say misplaced, ...): repairing it"]
     outcomes = [o.as_dict() for o in misplacement_outcomes(r)]
     assert outcomes == [
-        {"tile": 6, "kind": "turn", "injected_at": 10.0, "detected_at": 30.0, "repaired_at": 90.0},
-        {"tile": 7, "kind": "wrong_type", "injected_at": 12.0, "detected_at": None, "repaired_at": None},
-        {"tile": 6, "kind": "shift", "injected_at": 60.0, "detected_at": 65.0, "repaired_at": 90.0},
+        {"tile": 6, "kind": "turn", "injected_at": 10.0, "detected_at": 30.0, "repaired_at": 90.0,
+         "found_by": "robot"},
+        {"tile": 7, "kind": "wrong_type", "injected_at": 12.0, "detected_at": None, "repaired_at": None,
+         "found_by": None},
+        {"tile": 6, "kind": "shift", "injected_at": 60.0, "detected_at": 65.0, "repaired_at": 90.0,
+         "found_by": "inspection"},
     ]
     assert false_repairs(r) == [{"t": 96.0, "tile": 8}, {"t": 97.0, "tile": 6}]
     assert not r.present_at(6, 50.0, r.presence_intervals())  # taken off ends its stay

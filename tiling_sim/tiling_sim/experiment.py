@@ -194,6 +194,7 @@ class Experiment:
 
     def run_trial(self, setup: TrialSetup, progress: str) -> TrialRecord:
         record = TrialRecord(trial=setup.trial, seed=setup.seed, removals_planned=setup.removals,
+                             wrong_landings_planned=setup.misplacements + setup.wrong_tiles,
                              tile_types={i: t.type_name for i, t in self.structure.tiles.items()})
         logs = self.config.report_dir / "logs" / f"trial_{setup.trial:02d}"
         if logs.exists():

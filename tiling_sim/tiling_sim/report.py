@@ -134,8 +134,13 @@ def misplacement_table(result: ExperimentResult) -> list[str]:
     times = [o.repaired_at - o.injected_at for o in outcomes if o.repaired_at is not None]
     wrongly = sum(len(false_repairs(r)) for r in result.fault_trials())
     median = f"{statistics.median(times):.0f} s simulated" if times else "-"
-    return [*lines, f"false repairs (repair auctioned for a tile lying right): {wrongly}; "
-                    f"median landing -> right tile in place: {median}"]
+    asked = sum(r.wrong_landings_planned for r in result.fault_trials())
+    by_scans = sum(o.found_by == "inspection" for o in outcomes)
+    by_robots = sum(o.found_by == "robot" for o in outcomes)
+    return [*lines, f"asked for {asked}, {len(outcomes)} landed wrong (the others had no room to and landed "
+                    f"as planned); found by inspection {by_scans}, by a robot in its way {by_robots}",
+            f"false repairs (repair auctioned for a tile lying right): {wrongly}; "
+            f"median landing -> right tile in place: {median}"]
 
 
 def first_plan(result: ExperimentResult) -> PlanRecord | None:
@@ -389,6 +394,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
                 for o in removal_outcomes(record)
             ],
             "false_missing_calls": false_missing_calls(record),
+            "wrong_landings_asked": record.wrong_landings_planned,
             "misplacements": [o.as_dict() for o in misplacement_outcomes(record)],
             "false_repairs": len(false_repairs(record)),
             "robot_accounts": [a.as_dict() for a in robot_accounts(record, result.structure, TimeModel())],

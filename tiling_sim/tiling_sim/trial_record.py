@@ -97,6 +97,7 @@ class TrialRecord:
     trial: int
     seed: int
     removals_planned: int
+    wrong_landings_planned: int = 0  # tiles asked to land shifted, turned or of the wrong type
     tile_types: dict[int, str] = field(default_factory=dict)
     plans: list[PlanRecord] = field(default_factory=list)
     events: list[WorldEvent] = field(default_factory=list)
@@ -152,10 +153,11 @@ class MisplacementOutcome:
     detected_at: float | None  # its repair was auctioned
     taken_off_at: float | None
     repaired_at: float | None  # the right tile was in place
+    found_by: str | None = None  # "inspection" (two scans) or "robot" (found it in its way)
 
     def as_dict(self) -> dict[str, object]:
         return {"tile": self.tile, "kind": self.kind, "injected_at": self.injected_at,
-                "detected_at": self.detected_at, "repaired_at": self.repaired_at}
+                "detected_at": self.detected_at, "repaired_at": self.repaired_at, "found_by": self.found_by}
 
 
 def wrong_stays(record: TrialRecord) -> list[tuple[WorldEvent, float]]:
@@ -177,8 +179,22 @@ def misplacement_outcomes(record: TrialRecord) -> list[MisplacementOutcome]:
                       if e.kind == "placed" and e.tile == landing.tile and e.t >= gone
                       and (e.tile, e.t) not in wrong_landings), None)
         outcomes.append(MisplacementOutcome(landing.tile, landing.misplacement, landing.t, detected,
-                                            None if gone == float("inf") else gone, right))
+                                            None if gone == float("inf") else gone, right,
+                                            _repair_finder(record, landing.tile, detected)))
     return outcomes
+
+
+def _repair_finder(record: TrialRecord, tile: int, detected: float | None) -> str | None:
+    """Who found the wrong tile whose repair was auctioned at `detected`: the auction node's decision
+    line that opened it says (the k-th repair of a tile has its k-th "lies wrong" line)."""
+    if detected is None:
+        return None
+    repairs = [a.t for a in record.announcements if a.tile == tile and a.reason == REASON_MISPLACED]
+    lines = [d for d in record.decisions if d.startswith(f"tile {tile} lies wrong (")]
+    k = repairs.index(detected)
+    if k >= len(lines):
+        return None
+    return "inspection" if lines[k].startswith(f"tile {tile} lies wrong (scans") else "robot"
 
 
 def false_repairs(record: TrialRecord) -> list[dict[str, float]]:
