@@ -77,13 +77,8 @@ class MismatchDetector:
                 continue
             if not misplaced:
                 self.misplaced_streak.pop(tile_id, None)
-                continue
-            views = self.misplaced_streak.setdefault(tile_id, [])
-            if self._new_view(views, view):
-                views.append(view)
-            if len(views) >= self.confirmations:
+            elif self._confirmed(self.misplaced_streak, tile_id, view):
                 found.append(tile_id)
-                self.unplaced(tile_id)
         return sorted(found)
 
     def sensed(self, states: Mapping[int, int], at: float = math.inf, view: View | None = None) -> list[int]:
@@ -103,13 +98,19 @@ class MismatchDetector:
                 continue
             if self.q.get(tile_id, 0) * value != -1:
                 continue
-            views = self.missing_streak.setdefault(tile_id, [])
-            if self._new_view(views, view):
-                views.append(view)
-            if len(views) >= self.confirmations:
+            if self._confirmed(self.missing_streak, tile_id, view):
                 found.append(tile_id)
-                self.unplaced(tile_id)
         return sorted(found)
+
+    def _confirmed(self, streaks: dict[int, list[View | None]], tile_id: int, view: View | None) -> bool:
+        """Add `view` to the tile's streak; True (and the tile no longer placed) once it confirms."""
+        views = streaks.setdefault(tile_id, [])
+        if self._new_view(views, view):
+            views.append(view)
+        if len(views) < self.confirmations:
+            return False
+        self.unplaced(tile_id)
+        return True
 
     def _new_view(self, views: list[View | None], view: View | None) -> bool:
         if view is None or self.min_view_change <= 0:

@@ -129,3 +129,16 @@ class NodeProcess:
                 self.process.wait()
         self._log.close()
         return self.process.returncode
+
+
+def wheels_stop(create: Emulator, within: float) -> bool:
+    """Whether the Create's last drive command is a stop within `within` s. The stop travels through
+    create_base and the serial line, the action's result by another way: it may arrive first."""
+    deadline = time.monotonic() + within
+    while True:
+        drives = [text for _, text in create.lines if text.startswith("drive ")]
+        if drives and drives[-1].startswith("drive 0 0"):
+            return True
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)

@@ -11,7 +11,7 @@ import time
 from typing import Any
 
 import pytest
-from processes import Emulator, NodeProcess
+from processes import Emulator, NodeProcess, wheels_stop
 from rclpy.action import ActionClient
 from ros_probe import OverheadCamera, probe_health, shared_probe, wait_for_future
 
@@ -118,19 +118,6 @@ def _wait_for(condition, timeout: float, what: str) -> None:  # type: ignore[no-
         time.sleep(0.02)
 
 
-def _last_drive_stops(create: Emulator, within: float = 2.0) -> bool:
-    """Whether the Create's last drive command is a stop, within `within` s (the stop travels by
-    another way than the action's result)."""
-    deadline = time.monotonic() + within
-    while True:
-        drives = [text for _, text in create.lines if text.startswith("drive ")]
-        if drives and drives[-1].startswith("drive 0 0"):
-            return True
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
-
-
 def test_remove_tile_finds_the_shifted_tile_and_leaves_it_at_the_drop_off(m3) -> None:
     feedback: list[RemoveTile.Feedback] = []
     handle = _send(m3["remove"], _removal(), feedback)
@@ -154,7 +141,7 @@ def test_remove_tile_finds_the_shifted_tile_and_leaves_it_at_the_drop_off(m3) ->
     assert any(text.startswith(f"goal 6 {dx.radians_to_position(-0.6)}") for _, text in m3["arm"].lines)
     x, y, _ = m3["create"].true_pose()
     assert 0.32 < math.hypot(x - DROP_OFF[0], y - DROP_OFF[1]) < 0.32 + 0.10 + 0.05
-    assert _last_drive_stops(m3["create"])
+    assert wheels_stop(m3["create"], within=2.0)
 
 
 @pytest.mark.parametrize(("running", "refused"), [("remove", "place"), ("place", "remove")])
@@ -168,7 +155,7 @@ def test_one_goal_at_a_time_across_remove_tile_and_place_tile(m3, running: str, 
     handle.cancel_goal_async()
     result = wait_for_future(handle.get_result_async(), 20.0, "the canceled goal").result
     assert (result.error_code, result.message) == (type(result).CANCELED, "canceled")
-    assert _last_drive_stops(m3["create"])
+    assert wheels_stop(m3["create"], within=2.0)
     noun = {"remove": "removal", "place": "placement"}
     assert f"{refused}_tile goal for tile 3 rejected: tile 3's {noun[running]} is under way" in m3["m3_robot"].log()
 

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 
 import pytest
-from processes import Emulator, NodeProcess
+from processes import Emulator, NodeProcess, wheels_stop
 from rclpy.action import ActionClient
 from ros_probe import OverheadCamera, probe_health, shared_probe
 
@@ -157,20 +157,7 @@ def test_place_tile_completes_against_the_emulators(m3) -> None:
     assert abs(math.remainder(math.radians(yaw) - TILE_AT_CACHE[2], math.pi)) < math.radians(5)
     # the gripper closed on the tile, and the wheels are stopped at the end
     assert any(text.startswith(f"goal 6 {dx.radians_to_position(-0.6)}") for _, text in m3["arm"].lines)
-    assert _wheels_stop(m3["create"], within=2.0), [t for _, t in m3["create"].lines if t.startswith("drive ")][-3:]
-
-
-def _wheels_stop(create: Emulator, within: float) -> bool:
-    """Whether the Create's last drive command is a stop within `within` s. The stop travels through
-    create_base and the serial line, the action's result by another way: it may arrive first."""
-    deadline = time.monotonic() + within
-    while True:
-        drives = [text for _, text in create.lines if text.startswith("drive ")]
-        if drives and drives[-1].startswith("drive 0 0"):
-            return True
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
+    assert wheels_stop(m3["create"], within=2.0), [t for _, t in m3["create"].lines if t.startswith("drive ")][-3:]
 
 
 def test_no_tile_at_the_cache_fails_with_no_tile(m3) -> None:
@@ -244,7 +231,7 @@ def test_the_same_goal_sent_again_follows_the_placement_under_way(m3) -> None:
     results = [_wait(handle.get_result_async(), 20.0).result for handle in (first, again)]
     assert [r.error_code for r in results] == [PlaceTile.Result.CANCELED] * 2
     assert m3["nodes"]["m3_robot"].log().count("placing tile 3 ") == placements_before + 1
-    assert _wheels_stop(m3["create"], within=2.0)
+    assert wheels_stop(m3["create"], within=2.0)
 
 
 def _wait_until(condition, timeout: float, what: str) -> None:  # type: ignore[no-untyped-def]

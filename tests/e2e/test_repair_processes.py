@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -17,6 +16,7 @@ from conftest import REPO, STRUCTURES, ros2_command, stop_node_process
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from ros_helpers.isolated_domains import IsolatedDomain, fresh_domain
+from ros_helpers.spinning import spin_until
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
 
@@ -72,12 +72,7 @@ class Team:
         self.now = msg.clock.sec + msg.clock.nanosec * 1e-9
 
     def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-            if predicate():
-                return True
-        return False
+        return spin_until(self.executor, predicate, timeout)
 
     def happened(self, kind: str, tile: int) -> bool:
         return any(e["event"] == kind and e.get("tile") == tile for e in self.events)

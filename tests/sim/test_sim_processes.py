@@ -24,6 +24,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_helpers.isolated_domains import fresh_domain
+from ros_helpers.spinning import spin_until
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import String
@@ -90,12 +91,7 @@ class Simulator:
                                 stderr=subprocess.STDOUT, text=True)
 
     def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-            if predicate():
-                return True
-        return False
+        return spin_until(self.executor, predicate, timeout)
 
     def call(self, future: Any, timeout: float = 30.0) -> Any:
         assert self.spin_until(future.done, timeout), "no answer in time"
