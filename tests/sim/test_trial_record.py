@@ -115,6 +115,7 @@ def test_wrong_landings_are_detected_when_their_repair_is_auctioned_and_repaired
         Announcement(65.0, 2, 6, REASON_MISPLACED),
         Announcement(96.0, 3, 8, REASON_MISPLACED),  # 8 lay right: a false repair
         Announcement(97.0, 4, 6, REASON_MISPLACED),  # 6 was right again by then: another
+        Announcement(98.0, 5, 9, REASON_MISPLACED),  # 9 was never placed: a repair puts it there, not false
     ]
     r.decisions = ["tile 6 lies wrong (robot1 found it in the way when placing tile 9): repairing it",
                    "auction 1 opened for tile 6 (trapezoid, lying wrong: repair); bidders: robot1",

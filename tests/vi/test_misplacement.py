@@ -9,12 +9,12 @@ import pytest
 from vi_helpers import structure
 
 from tiling_assembly.contacts import separation
+from tiling_assembly.geometry import turn_symmetry
 from tiling_sim.inspection_scenarios import Scene, misplace_tile, view_from
 from tiling_sim.kinect import KinectSimulator
 from vi_node.classify import TileState
 from vi_node.inspection_settings import InspectionSettings
 from vi_node.misplacement import MisplacementSettings, TileFit, confirmed_by_pixels, moved_tile
-from vi_node.patches import turn_symmetry
 from vi_node.pipeline import InspectionPipeline
 from vi_node.pose_prior import OverheadPose
 

@@ -8,7 +8,8 @@ so a trial is reproducible from its seed.
 
 Beyond the paper (its future work): chosen tiles of a trial land wrong the first time they are
 placed. A misplaced tile is shifted 2-5 cm in a random direction or turned 15-45 degrees about the
-vertical; a wrong tile is a tile of another type of the same height, from the parts cache nearest
+vertical (at most half its symmetry's turn: a turn by its symmetry leaves it as planned); a wrong
+tile is a tile of another type of the same height, from the parts cache nearest
 the right one (the mix-up a robot makes at neighbouring caches). The tiles and how each lands are
 drawn from the seed and the tile alone, never from the order the robots happen to place them in, so
 a trial's faults do not depend on how busy the host is; and with generators of their own, so that
@@ -23,6 +24,7 @@ from dataclasses import dataclass, field
 
 import networkx as nx
 
+from tiling_assembly.geometry import turn_symmetry
 from tiling_assembly.structure import Structure
 from tiling_sim.world import Misplacement, PhysicalWorld
 
@@ -86,7 +88,9 @@ class FaultInjector:
             distance = draw.uniform(*SHIFT_RANGE)
             direction = draw.uniform(0.0, 2.0 * math.pi)
             return Misplacement(shift=(distance * math.cos(direction), distance * math.sin(direction)))
-        return Misplacement(turn=draw.choice((-1.0, 1.0)) * draw.uniform(*TURN_RANGE))
+        # a turn by a tile's symmetry leaves it as planned: an octagon turned 40 degrees is 5 off
+        largest = min(TURN_RANGE[1], math.pi / turn_symmetry(structure.tiles[tile_id]))
+        return Misplacement(turn=draw.choice((-1.0, 1.0)) * draw.uniform(TURN_RANGE[0], largest))
 
 
 def choose_wrong_tiles(

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tiling_assembly.contacts import separation
-from tiling_assembly.geometry import PlacedTile, rotation_from_rpy
+from tiling_assembly.geometry import PlacedTile, rotation_from_rpy, turn_symmetry
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure import Structure
 from tiling_sim.faults import SHIFT_RANGE, TURN_RANGE, mistaken_type
@@ -195,7 +195,8 @@ def misplace_tile(
             rotation = tile.rotation
             position = tile.position + distance * np.array([math.cos(angle), math.sin(angle), 0.0])
         else:
-            turn_by = rng.uniform(*turn) * rng.choice([-1.0, 1.0])
+            largest = min(turn[1], math.pi / turn_symmetry(tile))  # further would turn it back towards its place
+            turn_by = rng.uniform(turn[0], largest) * rng.choice([-1.0, 1.0])
             spin = rotation_from_rpy(0.0, 0.0, turn_by)
             rotation = spin @ tile.rotation
             position = spin @ (tile.position - tile.centroid) + tile.centroid

@@ -198,10 +198,12 @@ def _repair_finder(record: TrialRecord, tile: int, detected: float | None) -> st
 
 
 def false_repairs(record: TrialRecord) -> list[dict[str, float]]:
-    """Repairs auctioned for tiles that lay right (or were not there): when, which tile."""
+    """Repairs auctioned for tiles that were in place and lay right: when, which tile. (A repair of a
+    tile that is not there at all puts it back, as a re-placement would: not counted here.)"""
     stays = wrong_stays(record)
+    intervals = record.presence_intervals()
     return [{"t": a.t, "tile": a.tile} for a in record.announcements
-            if a.reason == REASON_MISPLACED
+            if a.reason == REASON_MISPLACED and record.present_at(a.tile, a.t, intervals)
             and not any(landing.tile == a.tile and landing.t <= a.t <= gone for landing, gone in stays)]
 
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tiling_assembly.geometry import PlacedTile
+from tiling_assembly.geometry import PlacedTile, turn_symmetry
 
 Array = NDArray[np.float64]
 
@@ -86,21 +86,6 @@ def _make_patch(tile: int, face: int, corners: Array, normal: Array) -> _Patch:
         low=corners.min(axis=0),
         high=corners.max(axis=0),
     )
-
-
-def turn_symmetry(tile: PlacedTile) -> int:
-    """How many turns about the vertical through the tile's centroid map it onto itself (1: none)."""
-    vertices = tile.vertices - tile.centroid
-    if abs(tile.rotation[2, 2] - 1.0) > 1e-6:
-        return 1  # not upright: a turn about the vertical is no symmetry to look for
-    for order in (8, 6, 5, 4, 3, 2):
-        angle = 2 * np.pi / order
-        c, s = np.cos(angle), np.sin(angle)
-        turned = vertices @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
-        gaps = np.linalg.norm(turned[:, None, :] - vertices[None, :, :], axis=2).min(axis=1)
-        if gaps.max() < 1e-3:
-            return order
-    return 1
 
 
 class PlanarPatches:
