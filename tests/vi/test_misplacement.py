@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -14,7 +15,13 @@ from tiling_sim.inspection_scenarios import Scene, misplace_tile, view_from
 from tiling_sim.kinect import KinectSimulator
 from vi_node.classify import TileState
 from vi_node.inspection_settings import InspectionSettings
-from vi_node.misplacement import MisplacementSettings, TileFit, confirmed_by_pixels, moved_tile
+from vi_node.misplacement import (
+    MisplacementSettings,
+    TileFit,
+    confirmed_by_pixels,
+    moved_tile,
+    something_else_there,
+)
 from vi_node.pipeline import InspectionPipeline
 from vi_node.pose_prior import OverheadPose
 
@@ -97,3 +104,37 @@ def test_a_refit_of_a_tile_that_is_gone_is_not_a_misplacement() -> None:
     assert confirmed_by_pixels(moved, agree=120, disagree=80, settings=settings)
     assert not confirmed_by_pixels(moved, agree=0, disagree=150, settings=settings, blank=40)
     assert not confirmed_by_pixels(moved, agree=5, disagree=100, settings=settings, blank=20)
+
+
+@pytest.mark.parametrize("tile", [13, 11])
+def test_a_tile_of_the_wrong_type_is_flagged_and_its_neighbours_are_not(tile: int) -> None:
+    """An octagon where a triangle (13) or a long rectangle (11, under triangle 13) should be: bigger
+    than the triangle, it stands out of its place; smaller than the rectangle, it leaves part of it
+    empty. Either way something of another shape lies there."""
+    paper = structure()
+    rng = np.random.default_rng(7)
+    others = [t for t in paper.tile_ids if t != tile]
+    swapped = misplace_tile(paper, tile, others, rng, kind="wrong_type")
+    assert swapped is not None and swapped.type_name == "octagon"
+    scene = Scene(paper, tuple(paper.tile_ids), (), {tile: swapped})
+    pipeline = InspectionPipeline(paper, None, InspectionSettings())
+    simulator = KinectSimulator(seed=8)
+    flagged_views = 0
+    for bearing in (-90.0, 0.0, 90.0, 180.0):
+        view = view_from(scene.centre, math.radians(bearing), 1.0, rng)
+        result = pipeline.inspect(simulator.scan(scene.kinect_scene, view.camera), OverheadPose(*view.overhead))
+        assert result.ok, result.reason
+        states = result.by_id()
+        assert states[tile].state != TileState.PRESENT
+        flagged_views += states[tile].state == TileState.MISPLACED
+        assert [t for t, s in states.items() if s.state == TileState.MISPLACED and t != tile] == []
+    assert flagged_views >= 3
+
+
+def test_something_else_there_needs_a_good_share_of_points_standing_clear_of_the_tile() -> None:
+    settings = MisplacementSettings()
+    unmoved = TileFit(points=200, residual=0.01, judged=True, misplaced=False)
+    assert something_else_there(replace(unmoved, sticking_out=60), settings)
+    assert not something_else_there(replace(unmoved, sticking_out=30), settings)  # 15%: edges, noise
+    assert not something_else_there(replace(unmoved, points=40, sticking_out=15), settings)  # too few to tell
+    assert not something_else_there(replace(unmoved, misplaced=True, sticking_out=60), settings)  # moved: a refit

@@ -43,6 +43,9 @@ class MisplacementSettings:
     kept_share: float = 0.1  # a tile that slipped still covers part of its place: this share of its pixels agree
     other_shape_share: float = 0.3  # not its shape: at least this share of its decisive pixels agree, and
     other_shape_pixels: int = 30  # ... this share see through it, of at least this many decisive pixels
+    sticking_out: float = 0.015  # m off its faces: a point of the tile's own that its planned shape does not explain
+    sticking_out_share: float = 0.25  # something else lies there when this share of its points stick out ...
+    sticking_out_points: int = 20  # ... and at least this many
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,7 @@ class TileFit:
     first_step: Array | None = None  # the linearised estimate (G's x, y, turn) that decided on a refit
     median_before: float = 0.0  # m, median distance of the refitted points to the tile where it should be
     sigmas: tuple[float, float] = (0.0, 0.0)  # significance of the fitted shift and turn
+    sticking_out: int = 0  # its points off its faces by more than `sticking_out`, unexplained by a refit
 
 
 @dataclass(frozen=True)
@@ -133,7 +137,31 @@ def assess(scan: ScanPoints, context: PlacementContext, settings: MisplacementSe
     for index in present[np.argsort(-first.rms[present], kind="stable")]:
         fit = _judge_tile(int(index), scan, owners, first, claimed, context, settings)
         fits[int(index)] = fit
-    return fits
+    out = _sticking_out(scan, owners, context.patches, claimed, settings)
+    return {index: replace(fit, sticking_out=int(out[index])) for index, fit in fits.items()}
+
+
+def _sticking_out(
+    scan: ScanPoints, owners: _Owners, patches: PlanarPatches, claimed: NDArray[np.bool_],
+    settings: MisplacementSettings,
+) -> NDArray[np.int64]:
+    """Per tile: its points clear of its faces at its own height (a point above a tile's top is
+    something resting on it, not part of it), which no refit explained."""
+    owner = owners.owner
+    tile = np.minimum(owner, len(patches) - 1)
+    z = scan.points[:, 2]
+    level = (z >= patches.tile_low[tile, 2] - 0.005) & (z <= patches.tile_high[tile, 2] + 0.005)
+    out = (owners.distance > settings.sticking_out) & level & ~claimed
+    return np.bincount(owner[out], minlength=len(patches) + 1)[:-1]
+
+
+def something_else_there(fit: TileFit, settings: MisplacementSettings) -> bool:
+    """Whether a tile that no motion of its own explains has something else at its place (a tile of
+    the wrong type, bigger than it; beyond the paper, its future work): a good share of the points
+    nearest to it stand clear of its faces, where neither it nor any other expected tile is."""
+    if fit.misplaced or not fit.judged:
+        return False
+    return fit.sticking_out >= max(settings.sticking_out_points, settings.sticking_out_share * fit.points)
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,14 @@ from vi_node.expected_returns import expect_returns
 from vi_node.floor import FloorFit, FloorSettings, correct_pose, fit_floor
 from vi_node.icp import Correspondences, IcpResult, IcpSettings, point_to_plane_icp
 from vi_node.inspection_settings import InspectionSettings
-from vi_node.misplacement import PlacementContext, ScanPoints, assess, confirmed_by_pixels, other_shape
+from vi_node.misplacement import (
+    PlacementContext,
+    ScanPoints,
+    assess,
+    confirmed_by_pixels,
+    other_shape,
+    something_else_there,
+)
 from vi_node.patches import PlanarPatches
 from vi_node.periodicity import periodic_shifts
 from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior, pose_error
@@ -676,8 +683,10 @@ class InspectionPipeline:
                 result.misplacement[tile.tile_id] = (misplaced, fit.offset, fit.residual)
             if misplaced:
                 tile.state, tile.offset = TileState.MISPLACED, fit.offset
-            elif tile.state is TileState.OCCLUDED and other_shape(
-                    tile.physical, tile.see_through + tile.blank, self.misplacement_settings):
+            elif tile.state in (TileState.OCCLUDED, TileState.PRESENT) and (
+                    something_else_there(fit, self.misplacement_settings)
+                    or (tile.state is TileState.OCCLUDED and other_shape(
+                        tile.physical, tile.see_through + tile.blank, self.misplacement_settings))):
                 tile.state, tile.offset = TileState.MISPLACED, (0.0, 0.0, 0.0)
                 result.misplacement[tile.tile_id] = (True, tile.offset, fit.residual)
 
