@@ -15,6 +15,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers.isolated_domains import fresh_domain
+from ros_helpers.spinning import spin_until as spin_helper
 
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure_file import load_structure
@@ -65,12 +66,7 @@ def test_placements_heard_before_the_structure_count() -> None:
     node.create_subscription(RobotStatus, "/robot_status", statuses.append, 10)
 
     def spin_until(predicate, timeout: float) -> bool:  # type: ignore[no-untyped-def]
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-            if predicate():
-                return True
-        return False
+        return spin_helper(executor, predicate, timeout)
 
     try:
         assert spin_until(lambda: reports.get_subscription_count() > 0, 30.0), "assembly_node did not come up"
@@ -122,12 +118,7 @@ class RobotUnderTest:
         return PlaceTile.Result(error_code=PlaceTile.Result.SUCCEEDED)
 
     def spin_until(self, predicate, timeout: float) -> bool:  # type: ignore[no-untyped-def]
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-            if predicate():
-                return True
-        return False
+        return spin_helper(self.executor, predicate, timeout)
 
     def plan(self, revision: int, tiles: list[int], structure_name: str) -> None:
         plan = AssemblyPlan(revision=revision, structure_name=structure_name)

@@ -1,5 +1,5 @@
 """The M3 robot's remove_tile action against the three device emulators, every part a real process
-(as test_m3_robot.py, whose set-up this mirrors): a long rectangle lies on the structure shifted and
+(the rig of `m3_rig`, as test_m3_robot.py): a long rectangle lies on the structure shifted and
 turned from where tile 3 should be; the robot finds it with the laser, lifts it and leaves it at the
 drop-off. One goal at a time across place_tile and remove_tile: the robot has one arm."""
 
@@ -11,9 +11,10 @@ import time
 from typing import Any
 
 import pytest
-from processes import Emulator, NodeProcess, wheels_stop
+from m3_rig import m3_rig
+from processes import wheels_stop
 from rclpy.action import ActionClient
-from ros_probe import OverheadCamera, probe_health, shared_probe, wait_for_future
+from ros_probe import probe_health, shared_probe, wait_for_future
 
 from hardware_drivers import dynamixel_protocol as dx
 from hardware_drivers.remove_tile_mission import RemovalPhase
@@ -26,58 +27,20 @@ BELIEVED = (0.0, 0.0, 0.0, 0.0)  # tile 3 of paper_14: x, y, z, yaw
 TILE_ON_STRUCTURE = (0.03, -0.02, 0.5)  # where the tile really lies (x, y, yaw): 3.6 cm and 29 deg off
 DROP_OFF = (0.3, -0.5)
 FAR = (1.5, 1.5)  # a goal this far keeps the robot driving
-LASER_MOUNT = "0.16,0.0,0.0"
-FAST_SERVOS = ("-p", "joint_max_velocities:=[3.0,3.0,3.0,3.0,3.0,3.0]")
-FAST = (*FAST_SERVOS, "-p", "arm_speed:=2.5", "-p", "max_linear:=0.3", "-p", "max_angular:=1.5")
-GRIPPER_ON_TILE = dx.radians_to_position(-0.2)
-ARM_PARAMS = ("config/hardware_drivers.yaml", "config/crustcrawler_arm.yaml")
 
 
 @pytest.fixture(scope="module")
 def m3(tmp_path_factory: pytest.TempPathFactory):
-    directory = tmp_path_factory.mktemp("m3_remove")
-    pose_file = directory / "true_pose"
-    emulators: list[Emulator] = []
-    nodes: list[NodeProcess] = []
-    camera = None
-    clients: list[ActionClient] = []
-    try:
-        emulators.append(Emulator("create", directory / "create", "--pose-file", str(pose_file),
-                                  "--start-pose", ",".join(str(v) for v in START)))
-        emulators.append(Emulator("dynamixel", directory / "arm", "--stall", f"6:{GRIPPER_ON_TILE}"))
-        emulators.append(Emulator("urg", directory / "urg", "--robot-pose-file", str(pose_file),
-                                  "--laser-mount", LASER_MOUNT,
-                                  "--tile-pose", ",".join(str(v) for v in TILE_ON_STRUCTURE), "--noise", "0.003"))
-        nodes += [
-            NodeProcess("create_base", directory, "-p", f"port:={directory / 'create'}"),
-            NodeProcess("crustcrawler_arm", directory, "-p", f"port:={directory / 'arm'}", *FAST_SERVOS,
-                        params_files=ARM_PARAMS),
-            NodeProcess("hokuyo_urg", directory, "-p", f"port:={directory / 'urg'}"),
-            NodeProcess("m3_robot", directory, "-p", "structure_file:=config/structures/paper_14.yaml",
-                        "-p", f"laser_mount:=[{LASER_MOUNT}]", *FAST, params_files=ARM_PARAMS),
-        ]
-        camera = OverheadCamera(pose_file, "/robot1/overhead_pose")
+    with m3_rig(tmp_path_factory.mktemp("m3_remove"), START, TILE_ON_STRUCTURE) as rig:
         clients = [ActionClient(shared_probe().node, RemoveTile, "/robot1/remove_tile"),
                    ActionClient(shared_probe().node, PlaceTile, "/robot1/place_tile")]
-        for client in clients:
-            assert client.wait_for_server(timeout_sec=30.0), f"{client._action_name} server did not come up"
-        for node in nodes[:3]:
-            node.wait_for_log("connected to the", timeout=20.0)
-        yield {"create": emulators[0], "arm": emulators[1], "m3_robot": nodes[3],
-               "remove": clients[0], "place": clients[1]}
-    finally:
-        if camera is not None:
-            camera.close()
-        for client in clients:
-            shared_probe().retire(client)
-        for node in nodes:
-            node.stop()
-        for emulator in emulators:
-            emulator.close()
-            (directory / f"{emulator.kind}_emulator.log").write_text(
-                "".join(f"{stamp:.6f} {text}\n" for stamp, text in emulator.lines))
-    for node in nodes:
-        assert "Traceback" not in node.log(), f"{node.name} printed a traceback:\n{node.log()}"
+        try:
+            for client in clients:
+                assert client.wait_for_server(timeout_sec=30.0), f"{client._action_name} server did not come up"
+            yield {**rig, "m3_robot": rig["nodes"]["m3_robot"], "remove": clients[0], "place": clients[1]}
+        finally:
+            for client in clients:
+                shared_probe().retire(client)
 
 
 def _removal(tile_type: str = "long_rectangle", at: tuple[float, float] = BELIEVED[:2]) -> RemoveTile.Goal:

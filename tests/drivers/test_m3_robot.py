@@ -14,9 +14,10 @@ import time
 from collections.abc import Callable
 
 import pytest
-from processes import Emulator, NodeProcess, wheels_stop
+from m3_rig import GRIPPER_ON_TILE, m3_rig
+from processes import wheels_stop
 from rclpy.action import ActionClient
-from ros_probe import OverheadCamera, probe_health, shared_probe
+from ros_probe import probe_health, shared_probe
 
 from hardware_drivers import dynamixel_protocol as dx
 from hardware_drivers.place_tile_mission import Outcome, Phase
@@ -28,60 +29,17 @@ START = (0.0, -0.45, 0.3)  # the base's true pose at power-up (m, m, rad)
 CACHE = (0.0, -1.0)  # long_rectangle cache of paper_14
 TILE_AT_CACHE = (0.02, -1.01, 0.4)  # where the tile really lies (x, y, yaw)
 GOAL = (0.0, 0.0, 0.0, 0.0)  # tile 3 of paper_14: x, y, z, yaw
-LASER_MOUNT = "0.16,0.0,0.0"
-# quicker than the real robot's defaults, to keep the test short
-FAST_SERVOS = ("-p", "joint_max_velocities:=[3.0,3.0,3.0,3.0,3.0,3.0]")
-FAST = (*FAST_SERVOS, "-p", "arm_speed:=2.5", "-p", "max_linear:=0.3", "-p", "max_angular:=1.5")
-GRIPPER_ON_TILE = dx.radians_to_position(-0.2)  # servo position where the fingers meet a 4 cm tile
 
 
 @pytest.fixture(scope="module")
 def m3(tmp_path_factory: pytest.TempPathFactory):
-    directory = tmp_path_factory.mktemp("m3")
-    pose_file = directory / "true_pose"
-    emulators: list[Emulator] = []
-    nodes: list[NodeProcess] = []
-    camera = client = None
-    try:
-        create = Emulator("create", directory / "create", "--pose-file", str(pose_file),
-                          "--start-pose", ",".join(str(v) for v in START))
-        emulators.append(create)
-        arm = Emulator("dynamixel", directory / "arm", "--stall", f"6:{GRIPPER_ON_TILE}")
-        emulators.append(arm)
-        urg = Emulator("urg", directory / "urg", "--robot-pose-file", str(pose_file),
-                       "--laser-mount", LASER_MOUNT, "--tile-pose", ",".join(str(v) for v in TILE_AT_CACHE),
-                       "--noise", "0.003")
-        emulators.append(urg)
-        arm_params = ("config/hardware_drivers.yaml", "config/crustcrawler_arm.yaml")
-        nodes += [
-            NodeProcess("create_base", directory, "-p", f"port:={directory / 'create'}"),
-            NodeProcess("crustcrawler_arm", directory, "-p", f"port:={directory / 'arm'}", *FAST_SERVOS,
-                        params_files=arm_params),
-            NodeProcess("hokuyo_urg", directory, "-p", f"port:={directory / 'urg'}"),
-            NodeProcess("m3_robot", directory, "-p", "structure_file:=config/structures/paper_14.yaml",
-                        "-p", f"laser_mount:=[{LASER_MOUNT}]", *FAST, params_files=arm_params),
-        ]
-        camera = OverheadCamera(pose_file, "/robot1/overhead_pose")
+    with m3_rig(tmp_path_factory.mktemp("m3"), START, TILE_AT_CACHE) as rig:
         client = ActionClient(shared_probe().node, PlaceTile, "/robot1/place_tile")
-        assert client.wait_for_server(timeout_sec=30.0), "place_tile server did not come up"
-        for node in nodes[:3]:
-            node.wait_for_log("connected to the", timeout=20.0)
-        yield {"create": create, "arm": arm, "urg": urg, "nodes": {n.name: n for n in nodes}, "client": client}
-    finally:
-        # also when the set-up failed half way: no emulator or node outlives the module
-        if camera is not None:
-            camera.close()
-        if client is not None:
+        try:
+            assert client.wait_for_server(timeout_sec=30.0), "place_tile server did not come up"
+            yield {**rig, "client": client}
+        finally:
             shared_probe().retire(client)
-        for node in nodes:
-            node.stop()
-        for emulator in emulators:
-            emulator.close()
-            # the emulators' event lines beside the nodes' logs, for a failure's post-mortem
-            (directory / f"{emulator.kind}_emulator.log").write_text(
-                "".join(f"{stamp:.6f} {text}\n" for stamp, text in emulator.lines))
-    for node in nodes:
-        assert "Traceback" not in node.log(), f"{node.name} printed a traceback:\n{node.log()}"
 
 
 def _goal(tile_id: int = 3) -> PlaceTile.Goal:

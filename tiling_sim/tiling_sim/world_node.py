@@ -191,9 +191,10 @@ class SimWorld(Node):
         response.stamp = stamp
         world = self.referee.world
         response.present_tiles = sorted(world.present)
-        response.misplaced_tiles = sorted(world.misplaced)
-        response.misplaced_types = [world.actual(t).type_name for t in response.misplaced_tiles]
-        response.misplaced_poses = [pose_of(world.actual(t)) for t in response.misplaced_tiles]
+        lying_wrong = [world.actual(t) for t in sorted(world.misplaced)]
+        response.misplaced_tiles = [t.tile_id for t in lying_wrong]
+        response.misplaced_types = [t.type_name for t in lying_wrong]
+        response.misplaced_poses = [pose_of(t) for t in lying_wrong]
         response.robots = [Point(x=pose[0], y=pose[1], z=0.0)
                            for robot, pose in self.whereabouts.poses.items() if robot in self.robots]
         for name in self.overhead_pubs:  # the overhead cameras see every robot at the scan's time
