@@ -130,10 +130,12 @@ def test_a_node_the_middleware_never_releases_still_ends_its_process() -> None:
 
 
 def test_a_teardown_that_holds_the_interpreter_still_ends_the_process() -> None:
-    """The Python deadline cannot run then; faulthandler's watchdog ends the process with the stacks."""
+    """The Python deadline cannot run then: faulthandler's watchdog writes the stacks and the exit
+    armed in the C library ends the process with the teardown's exit code, 0 (the node's work had
+    stopped; exit code 1 made the experiment and `ros2 launch` report a crash, as CI once did)."""
     code, output, seconds = _ctrl_c("gil_holding_teardown_node.py", timeout=TEARDOWN_PATIENCE + 15.0)
-    assert code == 1, output
-    assert seconds < TEARDOWN_PATIENCE + GIL_FREE_GRACE + 3.0
+    assert code == 0, output
+    assert TEARDOWN_PATIENCE + GIL_FREE_GRACE <= seconds < TEARDOWN_PATIENCE + GIL_FREE_GRACE + 3.0
     assert "Timeout" in output and "destroy_node" in output
 
 

@@ -39,13 +39,15 @@ from tiling_assembly.interrupts import (
     recorded_signals,
     skip_interpreter_exit,
 )
+from tiling_ros import exit_timer
 
 NodeT = TypeVar("NodeT", bound=Node)
 
 EXIT_BAD_INPUT = 2  # a parameter, structure file or other start-up input was rejected
 TEARDOWN_PATIENCE = 3.0  # s the middleware gets to release a stopped node (launch escalates after 5 s)
 STOP_PATIENCE = 10.0  # s for on_stop, the running callbacks (5 s) and on_shutdown together
-GIL_FREE_GRACE = 1.0  # s after a deadline: the watchdog that needs no interpreter ends the process
+GIL_FREE_GRACE = 1.0  # s after a deadline: the watchdogs that need no interpreter take over
+NATIVE_EXIT_DELAY = 0.2  # s the faulthandler's stacks get to reach the log before the exit
 
 
 def init_ros(args: list[str] | None = None) -> None:
@@ -142,9 +144,10 @@ def exit_unless_done_within(patience: float, message: str, exit_code: int) -> It
     """The block, or `message` on stderr and `os._exit(exit_code)` once it has run `patience` s.
 
     That takes the interpreter: a hang inside a C call that holds it (rclpy's publisher destroy
-    blocked so in vi_node, past the experiment's SIGABRT) would keep this thread from running. So
-    Python's faulthandler, whose watchdog needs no interpreter, also ends the process
-    `GIL_FREE_GRACE` s later: with every thread's stack on stderr, to find the hang, and exit code 1."""
+    blocked so in vi_node, sim_world and planner_node) would keep this thread from running. So
+    `GIL_FREE_GRACE` s later Python's faulthandler, whose watchdog needs no interpreter, writes every
+    thread's stack on stderr, to find the hang, and an exit armed in the C library (`exit_timer`)
+    ends the process with the same `exit_code`; where that cannot be armed, faulthandler exits (1)."""
     done = threading.Event()
 
     def give_up_waiting() -> None:
@@ -154,11 +157,14 @@ def exit_unless_done_within(patience: float, message: str, exit_code: int) -> It
             os._exit(exit_code)
 
     threading.Thread(target=give_up_waiting, name="deadline", daemon=True).start()
-    faulthandler.dump_traceback_later(patience + GIL_FREE_GRACE, exit=True)
+    native_exit = exit_timer.arm(patience + GIL_FREE_GRACE + NATIVE_EXIT_DELAY, exit_code)
+    faulthandler.dump_traceback_later(patience + GIL_FREE_GRACE, exit=native_exit is None)
     try:
         yield
     finally:
         faulthandler.cancel_dump_traceback_later()
+        if native_exit is not None:
+            native_exit.disarm()
         done.set()
 
 
