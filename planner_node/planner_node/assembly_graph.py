@@ -13,14 +13,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import coo_matrix, csr_matrix
-from scipy.sparse.csgraph import connected_components
 
 from tiling_assembly.structure import Structure
 from tiling_assembly.time_model import TimeModel
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_matrix
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -39,7 +41,12 @@ class AssemblyGraph:
     travel: FloatArray  # (n,) s, one way between the cache and the tile
     place: FloatArray  # (n,) s, placing it
     cost: FloatArray  # (n,) s, TimeModel.tile_cost: pick + 2 travel + place
-    adjacency: csr_matrix  # (n, n) symmetric, centroid distances of touching tiles
+    # the contact graph in compressed sparse rows: the neighbours of tile k are
+    # neighbour_index[neighbour_start[k]:neighbour_start[k + 1]], in increasing order, at
+    # neighbour_distance (centroid to centroid, m)
+    neighbour_start: IntArray  # (n + 1,)
+    neighbour_index: IntArray  # (2 * edges,)
+    neighbour_distance: FloatArray  # (2 * edges,)
     support_lists: tuple[tuple[int, ...], ...]  # indices each tile rests on
     dependent_lists: tuple[tuple[int, ...], ...]  # indices resting on each tile
     layer: IntArray  # (n,) 0 on the floor, else one above the highest support
@@ -54,10 +61,26 @@ class AssemblyGraph:
         return {int(t): k for k, t in enumerate(self.tile_ids)}
 
     @cached_property
+    def adjacency(self) -> csr_matrix:
+        """(n, n) symmetric scipy matrix of the centroid distances of touching tiles. Made when
+        asked for: importing scipy.sparse costs the `plan` command a third of a second, and the
+        default method on big structures does without it."""
+        from scipy.sparse import csr_matrix
+
+        n = len(self)
+        return csr_matrix((self.neighbour_distance, self.neighbour_index, self.neighbour_start), shape=(n, n))
+
+    @cached_property
     def neighbor_lists(self) -> tuple[tuple[int, ...], ...]:
         """Touching tiles of each tile (Python tuples: the trading loop indexes them one by one)."""
-        ptr, idx = self.adjacency.indptr, self.adjacency.indices.tolist()
+        ptr, idx = self.neighbour_start.tolist(), self.neighbour_index.tolist()
         return tuple(tuple(idx[ptr[k] : ptr[k + 1]]) for k in range(len(self)))
+
+    @cached_property
+    def edge_ends(self) -> tuple[IntArray, IntArray]:
+        """Both ends of every edge, once each way, row by row (the adjacency's order)."""
+        rows = np.repeat(np.arange(len(self), dtype=np.int64), np.diff(self.neighbour_start))
+        return rows, self.neighbour_index
 
     @cached_property
     def topological_order(self) -> IntArray:
@@ -69,6 +92,52 @@ class AssemblyGraph:
         return float(self.cost.sum())
 
 
+def _touching_pairs(structure: Structure, ids: list[int], support_lists: tuple[tuple[int, ...], ...]) -> IntArray:
+    """(i, j) index pairs, i < j, sorted, of the tiles that touch or rest on one another."""
+    n = len(ids)
+    id_array = np.array(ids, dtype=np.int64)
+    by_id = np.argsort(id_array)
+    contacts = np.array(structure.contacts, dtype=np.int64).reshape(-1, 2)
+    a, b = by_id[np.searchsorted(id_array[by_id], contacts)].T  # indices of the contacts' ids
+    a, b = np.minimum(a, b), np.maximum(a, b)
+    upper = np.repeat(np.arange(n, dtype=np.int64), [len(below) for below in support_lists])
+    lower = np.fromiter((s for below in support_lists for s in below), dtype=np.int64, count=len(upper))
+    first = np.concatenate([a, np.minimum(upper, lower)])
+    second = np.concatenate([b, np.maximum(upper, lower)])
+    keys = np.unique(first * max(n, 1) + second)
+    return np.column_stack([keys // max(n, 1), keys % max(n, 1)]).reshape(-1, 2)
+
+
+def connected_components(start: IntArray, neighbours: IntArray) -> tuple[int, IntArray]:
+    """Connected pieces of an undirected graph in compressed sparse rows (both directions of
+    every edge): their number and each node's piece, numbered as scipy.sparse.csgraph numbers them
+    (in the order of each piece's lowest node), without importing scipy.
+
+    Every node takes the lowest label among its own and its neighbours', then the label of its
+    label (pointer jumping), until nothing changes: then every node is labelled with the lowest
+    node of its piece.
+    """
+    n = len(start) - 1
+    label = np.arange(n, dtype=np.int64)
+    has_neighbours = start[1:] > start[:-1]
+    rows_with = start[:-1][has_neighbours]
+    while True:
+        lowest = label.copy()
+        if len(rows_with):
+            lowest[has_neighbours] = np.minimum(label[has_neighbours],
+                                                np.minimum.reduceat(label[neighbours], rows_with))
+        while True:
+            jumped = lowest[lowest]
+            if np.array_equal(jumped, lowest):
+                break
+            lowest = jumped
+        if np.array_equal(lowest, label):
+            break
+        label = lowest
+    roots, piece = np.unique(label, return_inverse=True)
+    return len(roots), piece.astype(np.int64)
+
+
 def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
     """The assembly graph of `structure` with tile costs under `time_model`."""
     ids = list(structure.tiles)
@@ -76,27 +145,26 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
     index = {t: k for k, t in enumerate(ids)}
     tiles = [structure.tiles[t] for t in ids]
     centroids = np.array([t.centroid for t in tiles], dtype=float).reshape(n, 3)
-    travel = np.array([time_model.travel_time(structure, t) for t in ids], dtype=float)
-    cost = np.array([time_model.tile_cost(structure, t) for t in ids], dtype=float)
+    travel_list = [time_model.travel_time(structure, t) for t in ids]
+    travel = np.array(travel_list, dtype=float)
+    # TimeModel.tile_cost, without working out the travel time a second time
+    cost = np.array([time_model.handling_time(t.type_name) + 2.0 * trip for t, trip in zip(tiles, travel_list,
+                                                                                          strict=True)], dtype=float)
     place = np.array([time_model.place_duration(t.type_name) for t in tiles], dtype=float)
     pick = np.full(n, time_model.pick_time, dtype=float)
 
     support_lists = tuple(tuple(index[s] for s in structure.supports[t]) for t in ids)
     dependent_lists = tuple(tuple(index[d] for d in structure.supported_by[t]) for t in ids)
 
-    pairs = {(index[a], index[b]) for a, b in structure.contacts}
-    pairs.update((min(i, s), max(i, s)) for i, below in enumerate(support_lists) for s in below)
-    if pairs:
-        edges = np.array(sorted(pairs), dtype=np.int64)
-        weights = np.linalg.norm(centroids[edges[:, 0]] - centroids[edges[:, 1]], axis=1)
-        weights = np.maximum(weights, MIN_EDGE_WEIGHT)
-        rows = np.concatenate([edges[:, 0], edges[:, 1]])
-        cols = np.concatenate([edges[:, 1], edges[:, 0]])
-        adjacency = coo_matrix((np.concatenate([weights, weights]), (rows, cols)), shape=(n, n)).tocsr()
-    else:
-        adjacency = csr_matrix((n, n), dtype=float)
-    adjacency.sort_indices()
-    n_components, component = connected_components(adjacency, directed=False)
+    edges = _touching_pairs(structure, ids, support_lists)
+    weights = np.linalg.norm(centroids[edges[:, 0]] - centroids[edges[:, 1]], axis=1)
+    weights = np.maximum(weights, MIN_EDGE_WEIGHT)
+    rows = np.concatenate([edges[:, 0], edges[:, 1]])
+    columns = np.concatenate([edges[:, 1], edges[:, 0]])
+    by_row = np.lexsort((columns, rows))
+    start = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n))]).astype(np.int64)
+    neighbours, distances = columns[by_row], np.concatenate([weights, weights])[by_row]
+    n_components, component = connected_components(start, neighbours)
 
     layers = structure.layers
     return AssemblyGraph(
@@ -107,10 +175,12 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
         travel=travel,
         place=place,
         cost=cost,
-        adjacency=adjacency,
+        neighbour_start=start,
+        neighbour_index=neighbours,
+        neighbour_distance=distances,
         support_lists=support_lists,
         dependent_lists=dependent_lists,
         layer=np.array([layers[t] for t in ids], dtype=np.int64),
-        component=component.astype(np.int64),
+        component=component,
         n_components=int(n_components),
     )

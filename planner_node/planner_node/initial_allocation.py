@@ -9,7 +9,7 @@ Starting tiles are ground-layer tiles on the exterior of the footprint: those wh
 arc length around the hull, counter-clockwise from the leftmost (-x) side, so that robot 1 starts
 on the left. A footprint thinner than the spacing between seeds (a wall: its hull's two long
 sides are the same tiles) is treated as a line instead: seeds at equal steps along its long axis.
-One Dijkstra from all seeds at once (scipy.sparse.csgraph) then gives every tile to the robot whose
+One Dijkstra from all seeds at once then gives every tile to the robot whose
 seed is nearest through the contact graph; every region is a shortest-path tree, hence connected.
 
 A structure in several separate pieces gets seeds per piece in proportion to the piece's work;
@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
+from heapq import heapify, heappop, heappush
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse.csgraph import dijkstra
-from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from planner_node.assembly_graph import AssemblyGraph
+from planner_node.footprint import convex_hull_indices, nearest_neighbour_distances
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -36,10 +37,79 @@ NO_ROBOT = -1
 
 @dataclass(frozen=True, eq=False)
 class InitialAllocation:
-    owner: IntArray  # (n,) robot index of every tile
+    """The seeds and the regions around them.
+
+    `distance` is worked out at once. The regions (`owner`) and every robot's distances
+    (`seed_distance`) are worked out when first asked for, by scipy's Dijkstra: importing it costs
+    the `plan` command a third of a second, and the default method on big structures uses neither.
+    """
+
+    graph: AssemblyGraph
+    n_robots: int
     seeds: tuple[int, ...]  # seed tile index of every robot (NO_ROBOT for a robot without tiles)
-    distance: FloatArray  # (n,) m, graph distance from the tile to its region's seed
-    seed_distance: FloatArray  # (robots, n) m, graph distance from each robot's seed(s) to each tile
+    seed_tiles: tuple[int, ...]  # every seed (a robot may have one in each of several pieces)
+    seed_robots: tuple[int, ...]  # the robot of each of `seed_tiles`
+    # (n,) m, graph distance from the tile to its region's seed: the nearest seed, since every
+    # region is a shortest-path tree around its seed
+    distance: FloatArray
+
+    @cached_property
+    def seed_distance(self) -> FloatArray:
+        """(robots, n) m, graph distance from each robot's seed(s) to each tile."""
+        seed_distance = np.full((self.n_robots, len(self.graph)), np.inf)
+        if not self.seed_tiles:
+            return seed_distance
+        from scipy.sparse.csgraph import dijkstra
+
+        from_seed = np.atleast_2d(dijkstra(self.graph.adjacency, directed=True, indices=list(self.seed_tiles)))
+        for row, r in zip(from_seed, self.seed_robots, strict=True):
+            np.minimum(seed_distance[r], row, out=seed_distance[r])
+        return seed_distance
+
+    @cached_property
+    def owner(self) -> IntArray:
+        """(n,) robot index of every tile, from the shortest-path forest of all seeds, so that every
+        region is a tree (connected) even where two seeds are exactly as far."""
+        n = len(self.graph)
+        if not self.seed_tiles:
+            return np.zeros(n, dtype=np.int64)
+        from scipy.sparse.csgraph import dijkstra
+
+        _, _, sources = dijkstra(
+            self.graph.adjacency, directed=True, indices=list(self.seed_tiles), return_predecessors=True,
+            min_only=True,
+        )
+        robot_of_seed = np.full(n, NO_ROBOT, dtype=np.int64)
+        robot_of_seed[list(self.seed_tiles)] = self.seed_robots
+        return robot_of_seed[sources]
+
+
+def nearest_seed_distances(graph: AssemblyGraph, seeds: list[int]) -> FloatArray:
+    """Graph distance from every tile to the nearest of `seeds` (m): one Dijkstra from all seeds.
+
+    The same numbers as scipy's: with positive weights, every correct Dijkstra finds the one
+    solution of d(v) = min over neighbours u of (d(u) + w(u, v)) in floating point.
+    """
+    start = graph.neighbour_start.tolist()
+    neighbours = graph.neighbour_index.tolist()
+    weights = graph.neighbour_distance.tolist()
+    distance = [math.inf] * len(graph)
+    heap = []
+    for s in seeds:
+        distance[s] = 0.0
+        heap.append((0.0, s))
+    heapify(heap)
+    while heap:
+        d, u = heappop(heap)
+        if d > distance[u]:
+            continue  # reached sooner by another path
+        for k in range(start[u], start[u + 1]):
+            v = neighbours[k]
+            through_u = d + weights[k]
+            if through_u < distance[v]:
+                distance[v] = through_u
+                heappush(heap, (through_u, v))
+    return np.array(distance)
 
 
 def _farthest_points(points: FloatArray, chosen: list[int], count: int) -> list[int]:
@@ -94,14 +164,12 @@ def exterior_seeds(graph: AssemblyGraph, tiles: IntArray, count: int) -> list[in
     minor = np.array([-major[1], major[0]])
     along = (xy - centre) @ major
     width = float(np.ptp((xy - centre) @ minor))
-    try:
-        hull = xy[ConvexHull(xy).vertices]  # counter-clockwise
+    corners = convex_hull_indices(xy)
+    hull, perimeter = None, 0.0
+    if corners is not None:
+        hull = xy[corners]  # counter-clockwise
         _, _, perimeter = _arc_positions(xy[:1], hull)
-    except (QhullError, ValueError):
-        hull, perimeter = None, 0.0
-
-    spacing, _ = cKDTree(xy).query(xy, k=2)
-    tolerance = max(0.5 * float(np.median(spacing[:, 1])), 1e-6)
+    tolerance = max(0.5 * float(np.median(nearest_neighbour_distances(xy))), 1e-6)
     if hull is None or width < 0.5 * perimeter / count:
         # a line-like footprint: seeds at equal steps along its long axis, on its exterior
         if hull is not None:
@@ -195,31 +263,22 @@ def initial_allocation(graph: AssemblyGraph, n_robots: int) -> InitialAllocation
     if n_robots < 1:
         raise ValueError("at least one robot is needed")
     n = len(graph)
-    if n == 0:
-        empty = np.zeros(0)
-        return InitialAllocation(np.zeros(0, dtype=np.int64), tuple([NO_ROBOT] * n_robots), empty,
-                                 np.zeros((n_robots, 0)))
     seeds: list[int] = []
     seed_robot: list[int] = []
-    for members, robots in split_among_pieces(graph, n_robots):
-        chosen = exterior_seeds(graph, members, len(robots))
-        seeds += chosen
-        seed_robot += robots[: len(chosen)]
-    from_seed = np.atleast_2d(dijkstra(graph.adjacency, directed=True, indices=seeds))
-    seed_distance = np.full((n_robots, n), np.inf)
-    for row, r in zip(from_seed, seed_robot, strict=True):
-        np.minimum(seed_distance[r], row, out=seed_distance[r])
-    # owners from the shortest-path forest, so that every region is a tree (connected) even
-    # where two seeds are exactly as far
-    _, _, sources = dijkstra(
-        graph.adjacency, directed=True, indices=seeds, return_predecessors=True, min_only=True
-    )
-    robot_of_seed = np.full(n, NO_ROBOT, dtype=np.int64)
-    robot_of_seed[seeds] = seed_robot
-    owner = robot_of_seed[sources]
+    if n:
+        for members, robots in split_among_pieces(graph, n_robots):
+            chosen = exterior_seeds(graph, members, len(robots))
+            seeds += chosen
+            seed_robot += robots[: len(chosen)]
     robot_seed = [NO_ROBOT] * n_robots
     for s, r in zip(seeds, seed_robot, strict=True):
         if robot_seed[r] == NO_ROBOT:
             robot_seed[r] = s
-    distance = seed_distance[owner, np.arange(n)]
-    return InitialAllocation(owner, tuple(robot_seed), distance, seed_distance)
+    return InitialAllocation(
+        graph=graph,
+        n_robots=n_robots,
+        seeds=tuple(robot_seed),
+        seed_tiles=tuple(seeds),
+        seed_robots=tuple(seed_robot),
+        distance=nearest_seed_distances(graph, seeds),
+    )

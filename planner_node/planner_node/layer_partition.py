@@ -20,10 +20,8 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
 
-from planner_node.assembly_graph import AssemblyGraph
+from planner_node.assembly_graph import AssemblyGraph, connected_components
 from planner_node.initial_allocation import split_among_pieces
 
 IntArray = NDArray[np.int64]
@@ -76,13 +74,13 @@ def _cut_layers(graph: AssemblyGraph, members: IntArray, robots: list[int]) -> I
 def _repair_connectivity(graph: AssemblyGraph, owner: IntArray, n_robots: int) -> IntArray:
     """Hand every detached fragment of a region to the lightest region it touches."""
     owner = owner.copy()
-    coo = graph.adjacency.tocoo()
-    rows, cols = coo.row, coo.col
+    rows, cols = graph.edge_ends
     n = len(graph)
     for _ in range(REPAIR_ROUNDS):
         same = owner[rows] == owner[cols]
-        inner = csr_matrix((np.ones(int(same.sum())), (rows[same], cols[same])), shape=(n, n))
-        count, label = connected_components(inner, directed=False)
+        # the edges within regions, still row by row
+        inner_start = np.concatenate([[0], np.cumsum(np.bincount(rows[same], minlength=n))]).astype(np.int64)
+        count, label = connected_components(inner_start, cols[same])
         work = np.bincount(label, weights=graph.cost, minlength=count)
         region_of = np.zeros(count, dtype=np.int64)
         region_of[label] = owner

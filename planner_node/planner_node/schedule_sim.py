@@ -73,7 +73,7 @@ def simulate_orders(graph: AssemblyGraph, orders: Sequence[Sequence[int]]) -> Si
     graph that no order contains are treated as never placed: tiles resting on them block.
     """
     n = len(graph)
-    seen = np.zeros(n, dtype=bool)
+    seen = [False] * n  # a list: numpy's element access is slow in a Python loop
     for order in orders:
         for t in order:
             if seen[t]:
@@ -110,7 +110,10 @@ def simulate_orders(graph: AssemblyGraph, orders: Sequence[Sequence[int]]) -> Si
             if unplaced_supports[t]:
                 waiting_robot[t] = r
                 break
-            ready = max((place_end[s] for s in supports[t]), default=0.0)
+            ready = 0.0  # when the last support is placed (times are never negative)
+            for s in supports[t]:
+                if place_end[s] > ready:
+                    ready = place_end[s]
             start[t] = now
             arrived = now + pick[t] + travel[t]
             arrive[t] = arrived

@@ -35,6 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 from heapq import heappop, heappush
+from weakref import WeakKeyDictionary
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,21 +59,37 @@ class Sequencing:
     helped: int  # tiles placed by a robot other than their region's
 
 
+_bottom_levels: WeakKeyDictionary[AssemblyGraph, list[float]] = WeakKeyDictionary()
+
+
 def bottom_levels(graph: AssemblyGraph) -> list[float]:
-    """Longest time from the start of each tile's placement to the end of the build (s)."""
+    """Longest time from the start of each tile's placement to the end of the build (s).
+
+    Worked out once per graph (every critical-path sequencing of a plan asks for it); the list
+    returned is shared, not to be changed."""
+    if graph not in _bottom_levels:
+        _bottom_levels[graph] = _longest_paths_to_the_end(graph)
+    return _bottom_levels[graph]
+
+
+def _longest_paths_to_the_end(graph: AssemblyGraph) -> list[float]:
     place = graph.place.tolist()
     travel = graph.travel.tolist()
     dependents = graph.dependent_lists
     level = [0.0] * len(graph)
     for t in reversed(graph.topological_order.tolist()):
-        level[t] = place[t] + max(travel[t], max((level[d] for d in dependents[t]), default=0.0))
+        longest = travel[t]  # after the last tile its robot still travels back
+        for d in dependents[t]:
+            if level[d] > longest:
+                longest = level[d]
+        level[t] = place[t] + longest
     return level
 
 
 def region_adjacency(graph: AssemblyGraph, owner: IntArray, n_robots: int) -> list[set[int]]:
     """Which robots' regions touch (through any contact)."""
-    coo = graph.adjacency.tocoo()
-    a, b = owner[coo.row], owner[coo.col]
+    rows, columns = graph.edge_ends
+    a, b = owner[rows], owner[columns]
     touching = [set() for _ in range(n_robots)]
     for r, s in set(zip(a[a != b].tolist(), b[a != b].tolist(), strict=True)):
         touching[r].add(s)
@@ -270,7 +287,7 @@ class TeamSequencer:
             if unscheduled[d] == 0:
                 self.offer(d)
                 woken.add(owner[d])
-                if self.helping:  # an idle robot may now help with the new tile
+                if self.helping and True in idle:  # an idle robot may now help with the new tile
                     woken.update(k for k in range(self.n_robots) if idle[k])
         return woken
 

@@ -11,15 +11,15 @@ tiles of big structures) are decided as arrays, all at once.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tiling_assembly import polygons
-from tiling_assembly.geometry import PieceAxes, PlacedTile
+from tiling_assembly.geometry import PieceAxes, PlacedTile, place_together
 
 Array = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 CONTACT_TOLERANCE = 1e-3  # m: surfaces closer than this touch
 OVERLAP_TOLERANCE = 1e-3  # m: interpenetration deeper than this is an overlap
@@ -27,12 +27,19 @@ MIN_SUPPORT_AREA = 1e-4  # m^2: shared area for one tile to rest on another (1 c
 MIN_SLOPE_NORMAL_Z = 0.1  # faces steeper than this (|n_z| below it) are sides, not supports
 
 
-class Contact(NamedTuple):
-    """Two tiles whose surfaces meet (a < b). A named tuple: a 10k-tile structure has 76k of them."""
+@dataclass(frozen=True)
+class Contacts:
+    """Pairs of tiles whose surfaces meet, as arrays (a 10k-tile structure has 76k of them): by
+    tile id (a < b) and by index in the tile list, with their signed separations."""
 
-    a: int
-    b: int
-    separation: float  # m, signed: <= 0 in contact, < -OVERLAP_TOLERANCE overlapping
+    a: IntArray  # (P,) the lower id of each pair
+    b: IntArray  # (P,) the higher id
+    a_index: IntArray  # (P,) index of tile `a` in the tile list
+    b_index: IntArray
+    separation: Array  # (P,) m, signed: <= 0 in contact, < -OVERLAP_TOLERANCE overlapping
+
+    def id_pairs(self) -> list[tuple[int, int]]:
+        return list(zip(self.a.tolist(), self.b.tolist(), strict=True))
 
 
 @dataclass(frozen=True)
@@ -46,6 +53,7 @@ class Boxes:
 
     @classmethod
     def of(cls, tiles: list[PlacedTile]) -> Boxes:
+        place_together(tiles)
         lo = np.array([t.aabb[0] for t in tiles]).reshape(-1, 3)
         hi = np.array([t.aabb[1] for t in tiles]).reshape(-1, 3)
         box = np.prod(hi - lo, axis=1)
@@ -61,13 +69,18 @@ def candidate_pairs(tiles: list[PlacedTile], margin: float, boxes: Boxes | None 
     come in the order of a sort and sweep on x (by the x-rank of the pair's first box, then of its
     second), the order the structure's contacts and rule violations have always been reported in.
     """
-    if len(tiles) < 2:
-        return []
-    boxes = boxes or Boxes.of(tiles)
+    first, second = _candidate_index_pairs(boxes or Boxes.of(tiles), margin)
+    return list(zip(first.tolist(), second.tolist(), strict=True))
+
+
+def _candidate_index_pairs(boxes: Boxes, margin: float) -> tuple[IntArray, IntArray]:
+    """`candidate_pairs` as two arrays (first < second)."""
+    if len(boxes.lo) < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     lo, hi = boxes.lo - margin, boxes.hi + margin
     first, second = _sharing_a_cell(lo, hi)
     hit = np.all((lo[first] <= hi[second]) & (hi[first] >= lo[second]), axis=1)
-    count = len(tiles)
+    count = len(lo)
     sweep_order = np.argsort(lo[:, 0], kind="stable")
     rank = np.empty(count, dtype=np.int64)
     rank[sweep_order] = np.arange(count)
@@ -75,7 +88,7 @@ def candidate_pairs(tiles: list[PlacedTile], margin: float, boxes: Boxes | None 
     # one integer per pair, ordered as the sweep meets the pairs; repeats (several shared cells) merge
     sweep_keys = np.unique(np.minimum(first_rank, second_rank) * count + np.maximum(first_rank, second_rank))
     a, b = sweep_order[sweep_keys // count], sweep_order[sweep_keys % count]
-    return list(zip(np.minimum(a, b).tolist(), np.maximum(a, b).tolist(), strict=True))
+    return np.minimum(a, b), np.maximum(a, b)
 
 
 def _sharing_a_cell(lo: Array, hi: Array) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -131,20 +144,20 @@ def separation(a: PlacedTile, b: PlacedTile) -> float:
 
 def find_contacts(
     tiles: list[PlacedTile], contact_tolerance: float = CONTACT_TOLERANCE, boxes: Boxes | None = None
-) -> list[Contact]:
-    """Every pair of tiles that touch or overlap, by tile id. Two box tiles are exactly their
-    bounding boxes, so their separation is the boxes' (all such pairs at once)."""
+) -> Contacts:
+    """Every pair of tiles that touch or overlap. Two box tiles are exactly their bounding boxes,
+    so their separation is the boxes' (all such pairs at once)."""
     boxes = boxes or Boxes.of(tiles)
-    pairs = np.array(candidate_pairs(tiles, contact_tolerance, boxes), dtype=np.int64).reshape(-1, 2)
-    i, j = pairs[:, 0], pairs[:, 1]
+    i, j = _candidate_index_pairs(boxes, contact_tolerance)
     separations = np.maximum(boxes.lo[j] - boxes.hi[i], boxes.lo[i] - boxes.hi[j]).max(axis=1)
     for k in np.flatnonzero(~(boxes.exact[i] & boxes.exact[j])).tolist():
         separations[k] = separation(tiles[i[k]], tiles[j[k]])
     touching = separations <= contact_tolerance
+    i, j = i[touching], j[touching]
     ids = np.array([t.tile_id for t in tiles], dtype=np.int64)
-    first, second = ids[i[touching]], ids[j[touching]]
-    return [Contact(a, b, s) for a, b, s in zip(np.minimum(first, second).tolist(), np.maximum(first, second).tolist(),
-                                                 separations[touching].tolist(), strict=True)]
+    i_first = ids[i] < ids[j]
+    a_index, b_index = np.where(i_first, i, j), np.where(i_first, j, i)
+    return Contacts(ids[a_index], ids[b_index], a_index, b_index, separations[touching])
 
 
 def plane_basis(normal: Array) -> tuple[Array, Array]:
@@ -186,7 +199,7 @@ def shared_face_area(
 
 
 def resting_pairs(
-    tiles: list[PlacedTile], found: list[Contact], *, boxes: Boxes, plane_tolerance: float = CONTACT_TOLERANCE,
+    tiles: list[PlacedTile], found: Contacts, *, boxes: Boxes, plane_tolerance: float = CONTACT_TOLERANCE,
     min_area: float = MIN_SUPPORT_AREA,
 ) -> list[tuple[int, int]]:
     """(lower id, upper id) of the touching pairs where an upward face of the lower tile meets a
@@ -195,9 +208,7 @@ def resting_pairs(
     Two box tiles meet only lower's top to upper's bottom, over the overlap of their x-y rectangles:
     all such pairs at once; the others face by face."""
     ids = np.array([t.tile_id for t in tiles], dtype=np.int64)
-    by_id = np.argsort(ids)
-    found_ids = np.array([(c.a, c.b) for c in found], dtype=np.int64).reshape(-1, 2)
-    a, b = by_id[np.searchsorted(ids[by_id], found_ids)].T
+    a, b = found.a_index, found.b_index
     both_boxes = boxes.exact[a] & boxes.exact[b]
     sides = np.minimum(boxes.hi[a, :2], boxes.hi[b, :2]) - np.maximum(boxes.lo[a, :2], boxes.lo[b, :2])
     overlapping = both_boxes & (np.prod(np.clip(sides, 0.0, None), axis=1) > min_area)

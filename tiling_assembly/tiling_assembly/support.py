@@ -57,7 +57,7 @@ def derive_supports(
     supports = _choose_supports(tiles, derived=derived, on_floor=on_floor)
     _check_nothing_floating(tiles, supports=supports, on_floor=on_floor, source=source)
     _check_no_support_cycle(tiles, supports=supports, source=source)
-    return supports, [(c.a, c.b) for c in found]
+    return supports, found.id_pairs()
 
 
 def _check_above_floor(ordered: list[PlacedTile], *, source: str, tolerances: Tolerances) -> None:
@@ -72,20 +72,21 @@ def _check_above_floor(ordered: list[PlacedTile], *, source: str, tolerances: To
     )
 
 
-def _check_no_overlap(found: list[contacts.Contact], *, source: str, tolerances: Tolerances) -> None:
+def _check_no_overlap(found: contacts.Contacts, *, source: str, tolerances: Tolerances) -> None:
+    overlapping = np.flatnonzero(found.separation < -tolerances.overlap).tolist()
     _fail(
         source,
         "overlap",
         [
-            ([c.a, c.b], f"tiles {c.a} and {c.b} overlap by {-c.separation * 1000:.1f} mm")
-            for c in found
-            if c.separation < -tolerances.overlap
+            ([a, b], f"tiles {a} and {b} overlap by {-depth * 1000:.1f} mm")
+            for a, b, depth in zip(found.a[overlapping].tolist(), found.b[overlapping].tolist(),
+                                   found.separation[overlapping].tolist(), strict=True)
         ],
     )
 
 
 def _supports_from_contacts(
-    ordered: list[PlacedTile], *, found: list[contacts.Contact], boxes: contacts.Boxes, tolerances: Tolerances
+    ordered: list[PlacedTile], *, found: contacts.Contacts, boxes: contacts.Boxes, tolerances: Tolerances
 ) -> dict[int, set[int]]:
     """For every tile, the touching tiles whose top meets its bottom over more than a small area."""
     derived: dict[int, set[int]] = {t.tile_id: set() for t in ordered}
