@@ -2,7 +2,7 @@
 
     ros2 run planner_node benchmark [--sizes 100 1000 10000] [--robots 2 4 8 16]
                                     [--kinds wall pyramid bridge cluster] [--repeat K]
-                                    [--params FILE] [--chart FILE.png]
+                                    [--params FILE] [--chart FILE.png] [--whole-process]
 
 For every structure (walls, pyramids, bridges, random clusters of about each size, see
 `structure_generators`) and team size it plans with the paper's method, the default method and a
@@ -11,6 +11,9 @@ also gives CPU time, which a busy machine disturbs less), makespan / lower bound
 workload imbalance (max/mean) and total waiting time. Progress goes to stderr, the table to stdout;
 `--chart` also draws makespan / lower bound as a PNG. Generating and validating the structures
 (the core's loader) is timed apart: it is not planning time.
+
+`--whole-process` times the `plan` command instead, as a process on structure files, with its
+stages (`whole_process_benchmark`; by default 10,000 tiles, 16 robots, 3 runs per structure).
 """
 
 from __future__ import annotations
@@ -158,16 +161,29 @@ def draw_chart(rows: list[Row], path: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="benchmark", description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 10_000])
-    parser.add_argument("--robots", type=int, nargs="+", default=[2, 4, 8, 16])
+    parser.add_argument("--sizes", type=int, nargs="+", help="default: 100 1000 10000 (--whole-process: 10000)")
+    parser.add_argument("--robots", type=int, nargs="+", help="default: 2 4 8 16 (--whole-process: 16)")
     parser.add_argument("--kinds", nargs="+", choices=sorted(GENERATORS), default=list(GENERATORS))
-    parser.add_argument("--repeat", type=int, default=1, help="plans per case; the median time is shown")
+    parser.add_argument("--repeat", type=int, help="plans per case; the median time is shown (default 1, "
+                                                   "--whole-process: 3)")
     parser.add_argument("--params", metavar="FILE", help="ROS 2 parameter file for the time model")
     parser.add_argument("--chart", metavar="FILE.png", help="also draw makespan / lower bound")
+    parser.add_argument(
+        "--whole-process", action="store_true",
+        help="time the `plan` command as a process on structure files instead (whole_process_benchmark)",
+    )
     args = parser.parse_args(argv)
+    whole = args.whole_process
+    args.sizes = args.sizes or ([10_000] if whole else [100, 1000, 10_000])
+    args.robots = args.robots or ([16] if whole else [2, 4, 8, 16])
+    args.repeat = args.repeat or (3 if whole else 1)
     if min(args.sizes) < 1 or min(args.robots) < 1 or args.repeat < 1:
         print("error: sizes, robots and repeat must be at least 1", file=sys.stderr)
         return 2
+    if whole:
+        from planner_node.whole_process_benchmark import run_whole_process
+
+        return run_whole_process(args.kinds, args.sizes, args.robots, max(args.repeat, 2))
     try:
         parameters = read_parameter_file(args.params)[0] if args.params else PlannerParameters()
     except ParameterError as error:

@@ -259,6 +259,10 @@ def trade_nodes(
     regions = RegionBorders(graph, owner, n_robots, affinity)
     limit = max_trades if max_trades is not None else 20 * len(graph) + 100
     trades = 0
+    # (giver, taker) pairs found without a trade since either region last changed. A trade between
+    # two other regions changes neither region's tiles, workload or common border, so the answer
+    # stays the same: asking again (a connectivity search per candidate) is what made trading slow.
+    no_trade: set[tuple[int, int]] = set()
     while trades < limit:
         traded = False
         load = regions.load
@@ -266,12 +270,17 @@ def trade_nodes(
             for taker in sorted(regions.neighbor_regions(giver), key=lambda r: load[r]):
                 if load[taker] >= load[giver]:
                     break
+                if (giver, taker) in no_trade:
+                    continue
                 tile = regions.best_trade(giver, taker)
-                if tile is not None:
-                    regions.move(tile, taker)
-                    trades += 1
-                    traded = True
-                    break
+                if tile is None:
+                    no_trade.add((giver, taker))
+                    continue
+                regions.move(tile, taker)
+                no_trade = {pair for pair in no_trade if giver not in pair and taker not in pair}
+                trades += 1
+                traded = True
+                break
             if traded:
                 break
         if not traded:

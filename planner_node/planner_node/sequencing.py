@@ -148,6 +148,9 @@ class TeamSequencer:
         self.bottom_level = bottom_levels(graph) if self.critical_path else []
         self.foreign_dependents = [] if self.critical_path else foreign_dependents(graph, self.owner)
         self.neighbours = region_adjacency(graph, owner, n_robots) if self.helping else []
+        # the robots whose regions do not touch each robot's (sets: who is asked first among
+        # equally urgent tiles follows their order)
+        self.others = [set(range(n_robots)) - near - {r} for r, near in enumerate(self.neighbours)]
 
         self.waiting: list[Heap] = [[] for _ in range(n_robots)]
         self.ready: list[Heap] = [[] for _ in range(n_robots)]
@@ -166,18 +169,17 @@ class TeamSequencer:
     def run(self) -> Sequencing:
         """Schedule every tile, robot by robot as each comes back to its caches."""
         self.offer_floor_tiles()
-        robots_free, idle = self.robots_free, self.idle
+        robots_free, idle, free_at = self.robots_free, self.idle, self.free_at
+        choose, place, release_dependents = self.choose, self.place, self.release_dependents
         while robots_free:
             now, robot = heappop(robots_free)
-            tile = self.choose(robot, now)
+            tile = choose(robot, now)
             if tile is None:
                 idle[robot] = True
                 continue
-            end = self.place(tile, robot, now)
-            woken = self.release_dependents(tile, end)
-            if woken:
-                self.wake(woken, now)
-            heappush(robots_free, (self.free_at[robot], robot))
+            end = place(tile, robot, now)
+            release_dependents(tile, end, now)
+            heappush(robots_free, (free_at[robot], robot))
         if sum(len(o) for o in self.orders) != len(self.owner):
             raise RuntimeError("sequencing left tiles unscheduled: the support relation has a cycle")
         return Sequencing(self.orders, np.array(self.owner, dtype=np.int64), self.helped)
@@ -237,9 +239,8 @@ class TeamSequencer:
         """The most urgent tile another robot could place now, if that robot would still finish
         after the helper; neighbouring robots first, so that the helper stays near its region."""
         mine = now + self.remaining_work[robot]
-        others = set(range(self.n_robots)) - self.neighbours[robot] - {robot}
         best = None
-        for group in (self.neighbours[robot], others):
+        for group in (self.neighbours[robot], self.others[robot]):
             for other in group:
                 t = self.best_ready(other, now)
                 if t is None or not self.worth_helping(t, mine=mine, helped=other, now=now):
@@ -276,24 +277,25 @@ class TeamSequencer:
         self.owner[t] = robot
         self.helped += 1
 
-    def release_dependents(self, t: int, end: float) -> set[int]:
-        """Offer the tiles that tile t was the last unscheduled support of; who should wake up."""
+    def release_dependents(self, t: int, end: float, now: float) -> None:
+        """Offer the tiles that tile t was the last unscheduled support of, placed by `end`, and
+        wake the idle robots that may now place them (at `now`)."""
         supports_end, unscheduled, owner, idle = self.supports_end, self.unscheduled_supports, self.owner, self.idle
-        woken: set[int] = set()
         for d in self.dependents[t]:
             if end > supports_end[d]:
                 supports_end[d] = end
             unscheduled[d] -= 1
             if unscheduled[d] == 0:
                 self.offer(d)
-                woken.add(owner[d])
+                if idle[owner[d]]:
+                    self.wake(owner[d], now)
                 if self.helping and True in idle:  # an idle robot may now help with the new tile
-                    woken.update(k for k in range(self.n_robots) if idle[k])
-        return woken
+                    for k in range(self.n_robots):
+                        if idle[k]:
+                            self.wake(k, now)
 
-    def wake(self, robots: set[int], now: float) -> None:
-        """Those of `robots` that are idle choose again at `now` (or when they are back, if later)."""
-        for k in robots:
-            if self.idle[k]:
-                self.idle[k] = False
-                heappush(self.robots_free, (max(self.free_at[k], now), k))
+    def wake(self, robot: int, now: float) -> None:
+        """An idle robot chooses again at `now` (or when it is back, if later). The order robots
+        are woken in does not matter: the heap orders them by (time, robot)."""
+        self.idle[robot] = False
+        heappush(self.robots_free, (max(self.free_at[robot], now), robot))
