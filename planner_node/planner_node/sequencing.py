@@ -146,6 +146,12 @@ class TeamSequencer:
         self.helping = help_margin is not None and self.critical_path
         self.help_margin = help_margin if help_margin is not None else 0.0
         self.bottom_level = bottom_levels(graph) if self.critical_path else []
+        # each tile's priority among the ready ones (most urgent first), made once: nearly every
+        # tile passes through a `ready` heap
+        self.ready_key = [
+            (-level, layer, near, t)
+            for t, (level, layer, near) in enumerate(zip(self.bottom_level, self.layer, self.distance, strict=True))
+        ] if self.critical_path else []
         self.foreign_dependents = [] if self.critical_path else foreign_dependents(graph, self.owner)
         self.neighbours = region_adjacency(graph, owner, n_robots) if self.helping else []
         # the robots whose regions do not touch each robot's (sets: who is asked first among
@@ -220,10 +226,13 @@ class TeamSequencer:
         """The robot's most urgent tile it can place at `now` without waiting."""
         waiting, ready = self.waiting[robot], self.ready[robot]
         scheduled, owner = self.scheduled, self.owner  # `is_current` inlined: this runs for every choice
-        while waiting and (waiting[0][0] <= now or scheduled[waiting[0][-1]] or owner[waiting[0][-1]] != robot):
-            t = heappop(waiting)[-1]
+        while waiting:
+            placeable_at, t = waiting[0]
+            if placeable_at > now and not scheduled[t] and owner[t] == robot:
+                break
+            heappop(waiting)
             if not scheduled[t] and owner[t] == robot:
-                heappush(ready, (-self.bottom_level[t], self.layer[t], self.distance[t], t))
+                heappush(ready, self.ready_key[t])
         while ready and (scheduled[ready[0][-1]] or owner[ready[0][-1]] != robot):
             heappop(ready)
         return ready[0][-1] if ready else None

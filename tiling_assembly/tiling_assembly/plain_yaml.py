@@ -15,6 +15,7 @@ import re
 from typing import Any
 
 NOT_PLAIN: Any = object()  # what `read_plain_yaml` returns for text outside the plain subset
+_UNSEEN: Any = object()
 
 # Characters that PyYAML refuses or treats specially (line breaks other than "\n", tabs, a byte
 # order mark): text holding any of them is left to PyYAML.
@@ -32,6 +33,7 @@ _WORDS: dict[str, Any] = {
 }
 _QUOTED = re.compile(r"'[^']*'\Z|\"[^\"\\]*\"\Z")  # no escapes: the text between is the string
 
+_MARKER_LINE = re.compile(r"^(?:---|\.\.\.|%)", re.MULTILINE)  # document markers and directives
 # "key:" or "key: value" (comments already cut off); the key is a scalar as above
 _KEY_LINE = re.compile(r"(?P<key>'[^']*'|\"[^\"\\]*\"|[A-Za-z0-9_~+\-][A-Za-z0-9_.+\-/]*):(?: +(?P<rest>.*))?\Z")
 # one token of a flow collection: an indicator, or a scalar (no spaces: "a b" is not plain here)
@@ -86,7 +88,7 @@ class _Reader:
     line, which is then read as if it started a line there."""
 
     def __init__(self, text: str) -> None:
-        if _OUTSIDE_SUBSET.search(text):
+        if _OUTSIDE_SUBSET.search(text) or _MARKER_LINE.search(text):
             raise _NotPlainError
         self.lines: list[tuple[int, str]] = []  # (column, content) of the lines that hold a node
         lines, has_comments = self.lines, "#" in text
@@ -99,8 +101,6 @@ class _Reader:
                 if content[0] == "#":
                     continue
                 content = _without_comment(content)
-            if column == 0 and content[0] in "-.%" and content.startswith(("---", "...", "%")):
-                raise _NotPlainError  # document markers and directives
             lines.append((column, content.rstrip(" ")))
         self.next = 0  # index in `lines` of the next line to read
         self.scalars: dict[str, Any] = {}  # text -> value: big structures repeat their numbers
@@ -132,39 +132,51 @@ class _Reader:
             raise _NotPlainError
 
     def mapping(self, column: int) -> dict[Any, Any]:
-        lines, mapping = self.lines, {}
-        while self.next < len(lines) and lines[self.next][0] == column:
-            match = _KEY_LINE.match(lines[self.next][1])
+        lines, mapping, at = self.lines, {}, self.next  # `at`: a local copy of `next`, for speed
+        while at < len(lines) and lines[at][0] == column:
+            match = _KEY_LINE.match(lines[at][1])
             if match is None:
                 break
             key = self.scalar(match["key"])
             if key in mapping:
                 raise _NotPlainError
-            self.next += 1
+            at += 1
             rest = match["rest"]
-            mapping[key] = self.inline(rest) if rest else self.nested(column, compact_sequence=True)
+            if rest:
+                value = self.scalars.get(rest, _UNSEEN)  # the inline value, looked up without a call
+                mapping[key] = self.inline(rest) if value is _UNSEEN else value
+            else:
+                self.next = at
+                mapping[key] = self.nested(column, compact_sequence=True)
+                at = self.next
+        self.next = at
         if not mapping:
             raise _NotPlainError  # a scalar on a line of its own, or something else we do not read
         self.ended(column)
         return mapping
 
     def sequence(self, column: int) -> list[Any]:
-        lines, items = self.lines, []
-        while self.next < len(lines) and lines[self.next][0] == column:
-            content = lines[self.next][1]
-            if not _is_sequence_entry(content):
+        lines, items, at = self.lines, [], self.next  # `at`: a local copy of `next`, for speed
+        while at < len(lines):
+            start, content = lines[at]
+            if start != column or not (content[:2] == "- " or content == "-"):
                 break
             rest = content[2:].lstrip(" ")
             if not rest:
-                self.next += 1
+                self.next = at + 1
                 items.append(self.nested(column, compact_sequence=False))
-            elif _is_sequence_entry(rest) or (":" in rest and rest[0] not in "[{" and _KEY_LINE.match(rest)):
+                at = self.next
+            elif rest[:2] == "- " or rest == "-" or (":" in rest and rest[0] not in "[{" and _KEY_LINE.match(rest)):
                 inner = column + len(content) - len(rest)  # the node starts where its text does
-                lines[self.next] = (inner, rest)
+                lines[at] = (inner, rest)
+                self.next = at
                 items.append(self.block(inner))
+                at = self.next
             else:
-                self.next += 1
-                items.append(self.inline(rest))
+                value = self.scalars.get(rest, _UNSEEN)  # the inline value, looked up without a call
+                items.append(self.inline(rest) if value is _UNSEEN else value)
+                at += 1
+        self.next = at
         self.ended(column)
         return items
 

@@ -80,7 +80,7 @@ class _Checker:
     def keys(self, where: str, value: Any, allowed: set[str], ids: tuple[int, ...] = ()) -> dict[str, Any]:
         if not isinstance(value, Mapping):
             raise self.fail("bad-value", f"{where} must be a mapping, got {_kind(value)}", ids)
-        unknown = sorted(str(k) for k in value if k not in allowed)
+        unknown = [] if allowed.issuperset(value) else sorted(str(k) for k in value if k not in allowed)
         if unknown:
             raise self.fail(
                 "unknown-key",
@@ -100,6 +100,8 @@ class _Checker:
     def vector(self, where: str, value: Any, size: int, ids: tuple[int, ...] = ()) -> np.ndarray:
         if not isinstance(value, list) or len(value) != size:
             raise self.fail("bad-value", f"{where} must be a list of {size} numbers, got {_show(value)}", ids)
+        if all(type(v) is float and math.isfinite(v) for v in value):
+            return np.array(value)  # the common case, without naming every element for an error
         return np.array([self.number(f"{where}[{k}]", v, ids) for k, v in enumerate(value)])
 
     def points(self, where: str, value: Any, size: int, ids: tuple[int, ...] = ()) -> np.ndarray:
