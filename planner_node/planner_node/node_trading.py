@@ -155,11 +155,12 @@ class RegionBorders:
             if budget < 0:
                 return False  # undecided after a long search: refuse, so that no region ever splits
             for k, queue in enumerate(queues):
-                if root(k) != k and not queue:
+                # `parent[k] == k` says as much as `root(k) == k`, without a call
+                if parent[k] != k and not queue:
                     continue
                 if not queue:
                     return False  # search k (with all it met) is closed off from the others
-                here = root(k)
+                here = k if parent[k] == k else root(k)
                 for v in neighbors[queue.popleft()]:
                     if owner[v] != region:
                         continue
@@ -176,7 +177,7 @@ class RegionBorders:
                             if groups == 1:
                                 return True
                 # a merged search keeps its own queue; queues of one group are advanced in turn
-                if root(k) != k:
+                if parent[k] != k:
                     r = root(k)
                     queues[r].extend(queue)
                     queue.clear()

@@ -38,6 +38,7 @@ class Case:
     """One structure file and what its `plan` runs measured."""
 
     kind: str
+    size: int  # the size asked for; `tiles` is what the generator made of it
     path: Path
     tiles: int
     robots: int
@@ -118,7 +119,7 @@ def format_report(cases: list[Case]) -> str:
 def verdicts(cases: list[Case]) -> str:
     lines = []
     for case in cases:
-        if case.tiles < 10_000 or case.robots != 16:
+        if case.size < 10_000 or case.robots != 16:
             continue
         load_ok = min(case.load_seconds) <= TARGET_LOAD_SECONDS
         process_ok = case.best_of_two() <= TARGET_PROCESS_SECONDS
@@ -141,7 +142,7 @@ def run_whole_process(kinds: list[str], sizes: list[int], robots: list[int], rep
             for size in sizes:
                 path = write_structure(kind, size, Path(folder))
                 tiles = len(load_structure(path))
-                cases += [Case(kind, path, tiles, n) for n in robots]
+                cases += [Case(kind, size, path, tiles, n) for n in robots]
         for round_number in range(repeat):
             for case in cases:
                 tic = time.perf_counter()

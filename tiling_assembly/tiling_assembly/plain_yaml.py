@@ -18,8 +18,10 @@ NOT_PLAIN: Any = object()  # what `read_plain_yaml` returns for text outside the
 _UNSEEN: Any = object()
 
 # Characters that PyYAML refuses or treats specially (line breaks other than "\n", tabs, a byte
-# order mark): text holding any of them is left to PyYAML.
-_OUTSIDE_SUBSET = re.compile("[^\n\x20-\x7e\xa0-\u2027\u202a-\ud7ff\ue000-\ufefe\uff00-\ufffd\U00010000-\U0010ffff]")
+# order mark): text holding any of them is left to PyYAML. The class for all of Unicode takes
+# 8 ms to compile, so it is compiled only for text that is not ASCII.
+_OUTSIDE_ASCII_SUBSET = re.compile("[^\n\x20-\x7e]")
+_OUTSIDE_SUBSET = "[^\n\x20-\x7e\xa0-\u2027\u202a-\ud7ff\ue000-\ufefe\uff00-\ufffd\U00010000-\U0010ffff]"
 
 # Plain scalars, resolved as PyYAML's implicit resolvers (YAML 1.1) resolve them. Each pattern is
 # a part of PyYAML's own for its type that excludes every other type; anything else is not plain.
@@ -88,7 +90,8 @@ class _Reader:
     line, which is then read as if it started a line there."""
 
     def __init__(self, text: str) -> None:
-        if _OUTSIDE_SUBSET.search(text) or _MARKER_LINE.search(text):
+        outside = _OUTSIDE_ASCII_SUBSET if text.isascii() else re.compile(_OUTSIDE_SUBSET)
+        if outside.search(text) or _MARKER_LINE.search(text):
             raise _NotPlainError
         self.lines: list[tuple[int, str]] = []  # (column, content) of the lines that hold a node
         lines, has_comments = self.lines, "#" in text
