@@ -26,6 +26,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass
+from heapq import heapify, heappop
 
 import numpy as np
 from numpy.typing import NDArray
@@ -224,11 +225,15 @@ class RegionBorders:
         half = 0.5 * gap
         if self.affinity is not None:
             near, far = self.affinity[taker], self.affinity[giver]
-            candidates.sort(key=lambda t: (near[t] - far[t], abs(cost[t] - half), t))
+            ranked = [(near[t] - far[t], abs(cost[t] - half), t) for t in candidates]
         else:
             # most contact with the taker first, then the best balancing cost
-            candidates.sort(key=lambda t: (-counts[t][taker], abs(cost[t] - half), t))
-        for t in candidates:
+            ranked = [(-counts[t][taker], abs(cost[t] - half), t) for t in candidates]
+        # best first, as sorting would give them (the tile breaks ties), but only as far as needed:
+        # the first tile or two usually may leave
+        heapify(ranked)
+        while ranked:
+            t = heappop(ranked)[-1]
             if self.can_leave(t):
                 return t
         return None

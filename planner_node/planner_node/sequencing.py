@@ -290,12 +290,16 @@ class TeamSequencer:
         """Offer the tiles that tile t was the last unscheduled support of, placed by `end`, and
         wake the idle robots that may now place them (at `now`)."""
         supports_end, unscheduled, owner, idle = self.supports_end, self.unscheduled_supports, self.owner, self.idle
+        critical_path, waiting, travel, pick = self.critical_path, self.waiting, self.travel_time, self.pick_time
         for d in self.dependents[t]:
             if end > supports_end[d]:
                 supports_end[d] = end
             unscheduled[d] -= 1
             if unscheduled[d] == 0:
-                self.offer(d)
+                if critical_path:  # `offer` inlined: this runs for nearly every tile
+                    heappush(waiting[owner[d]], (supports_end[d] - travel[d] - pick[d], d))
+                else:
+                    self.offer(d)
                 if idle[owner[d]]:
                     self.wake(owner[d], now)
                 if self.helping and True in idle:  # an idle robot may now help with the new tile
