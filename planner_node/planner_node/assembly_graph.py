@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from itertools import chain
+from itertools import chain, pairwise
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -142,6 +142,36 @@ def connected_components(start: IntArray, neighbours: IntArray) -> tuple[int, In
     return len(roots), piece.astype(np.int64)
 
 
+def _dependent_lists(support_lists: tuple[tuple[int, ...], ...], ids: list[int]) -> tuple[tuple[int, ...], ...]:
+    """The indices resting on each tile in increasing order of their ids: `Structure.supported_by`
+    by index, without its dictionaries."""
+    dependents: list[list[int]] = [[] for _ in support_lists]
+    for upper, below in enumerate(support_lists):
+        for lower in below:
+            dependents[lower].append(upper)  # increasing indices: increasing ids when ids increase
+    if any(a > b for a, b in pairwise(ids)):
+        dependents = [sorted(d, key=ids.__getitem__) for d in dependents]
+    return tuple(tuple(d) for d in dependents)
+
+
+def _layers(support_lists: tuple[tuple[int, ...], ...], dependent_lists: tuple[tuple[int, ...], ...]) -> list[int]:
+    """`Structure.layers` by index: 0 without supports, else one above the highest support.
+
+    Every tile is reached once all its supports are (the supports form no cycle in a Structure)."""
+    waiting = [len(below) for below in support_lists]
+    layer = [0] * len(support_lists)
+    reached = [k for k, count in enumerate(waiting) if count == 0]
+    for k in reached:  # the list grows as tiles are reached
+        above = layer[k] + 1
+        for d in dependent_lists[k]:
+            if above > layer[d]:
+                layer[d] = above
+            waiting[d] -= 1
+            if waiting[d] == 0:
+                reached.append(d)
+    return layer
+
+
 def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
     """The assembly graph of `structure` with tile costs under `time_model`."""
     ids = list(structure.tiles)
@@ -158,7 +188,7 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
     pick = np.full(n, time_model.pick_time, dtype=float)
 
     support_lists = tuple(tuple(index[s] for s in structure.supports[t]) for t in ids)
-    dependent_lists = tuple(tuple(index[d] for d in structure.supported_by[t]) for t in ids)
+    dependent_lists = _dependent_lists(support_lists, ids)
 
     edges = _touching_pairs(structure, ids, support_lists)
     weights = np.linalg.norm(centroids[edges[:, 0]] - centroids[edges[:, 1]], axis=1)
@@ -170,7 +200,6 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
     neighbours, distances = columns[by_row], np.concatenate([weights, weights])[by_row]
     n_components, component = connected_components(start, neighbours)
 
-    layers = structure.layers
     return AssemblyGraph(
         tile_ids=np.array(ids, dtype=np.int64),
         type_names=tuple(t.type_name for t in tiles),
@@ -184,7 +213,7 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
         neighbour_distance=distances,
         support_lists=support_lists,
         dependent_lists=dependent_lists,
-        layer=np.array([layers[t] for t in ids], dtype=np.int64),
+        layer=np.array(_layers(support_lists, dependent_lists), dtype=np.int64),
         component=component,
         n_components=int(n_components),
     )

@@ -98,3 +98,13 @@ def test_the_plan_command_plans_a_big_structure_without_importing_scipy() -> Non
     )
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("structure", [load_structure(p) for p in sorted(STRUCTURES.glob("*.yaml"))]
+                         + [parse_structure(GENERATORS["cluster"](500), "cluster")])
+def test_the_graphs_layers_and_dependents_are_the_structures(structure: object) -> None:
+    """The graph works them out by index, without the structure's dictionaries."""
+    graph = build_graph(structure, TimeModel())
+    ids = graph.tile_ids.tolist()
+    assert graph.layer.tolist() == [structure.layers[t] for t in ids]
+    assert [tuple(ids[d] for d in deps) for deps in graph.dependent_lists] == [structure.supported_by[t] for t in ids]
