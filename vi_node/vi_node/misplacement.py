@@ -46,6 +46,14 @@ class MisplacementSettings:
     sticking_out: float = 0.015  # m off its faces: a point of the tile's own that its planned shape does not explain
     sticking_out_share: float = 0.25  # something else lies there when this share of its points stick out ...
     sticking_out_points: int = 20  # ... and at least this many
+    settled_median: float = 0.004  # m, a refit from "in place" leaving a smaller median distance needs no
+    # other start ...
+    start_turns: tuple[float, ...] = (math.radians(20.0), math.radians(35.0))  # ... else also from these
+    fitted_share: float = 0.7  # a refit the planned pose's pixels cannot confirm stands when this share of
+    fitted_gain: float = 0.25  # ... the pixels at the fitted pose agree, this share more than at the planned
+    fitted_pixels: int = 30  # ... pose, of at least this many decisive pixels (`pose_hypotheses`)
+    disturbed_share: float = 0.08  # refit whatever the first step says when this share of its decisive pixels
+    disturbed_pixels: int = 15  # ... and at least this many disagree with its planned pose
 
 
 @dataclass(frozen=True)
@@ -323,9 +331,7 @@ def _fit_tile(
     faces). Points `claimed` by a tile already found moved are left out."""
     patches, camera_position, surfaces = context.patches, context.camera_position, context.surfaces
     centre = patches.tile_centroid[index]
-    theta, shift, _, covariance = _refit(
-        points[mine], index, patches, camera_position, settings, surfaces
-    )
+    theta, shift, covariance = _refit_from_turns(points[mine], index, context, settings)
     chosen = mine
     for _ in range(3):  # a tile that moved far takes a few rounds to collect all of its points
         reach = settings.reach + float(np.hypot(*shift))
@@ -350,6 +356,45 @@ def _fit_tile(
         if abs(theta - previous[0]) < 0.005 and np.linalg.norm(shift - previous[1]) < 0.001:
             break
     return _summarise(points, chosen, index, theta, shift, covariance, context)
+
+
+def _refit_from_turns(points: Array, index: int, context: PlacementContext,
+                      settings: MisplacementSettings) -> tuple[float, Array, Array]:
+    """`_refit` from "in place", and when that leaves the points off the tile (a turn of 30 degrees
+    is far outside the linearisation) also from turns of either sign up to half the tile's symmetry
+    turn: the believable fit with the smallest median distance of all the points to the tile
+    (points it leaves beyond reach count as far: a fit must not win by dropping points)."""
+    patches, camera_position, surfaces = context.patches, context.camera_position, context.surfaces
+    theta, shift, _, covariance = _refit(points, index, patches, camera_position, settings, surfaces)
+    best = (_median_distance(points, index, theta, shift, context), theta, shift, covariance)
+    if best[0] <= settings.settled_median and _believable(theta, shift, settings):
+        return theta, shift, covariance
+    if not _believable(theta, shift, settings):
+        best = (math.inf, *best[1:])
+    half_symmetry = math.pi / patches.tile_symmetry[index]
+    for turn in settings.start_turns:
+        if turn > min(half_symmetry, settings.max_turn):
+            continue
+        for start in (turn, -turn):
+            theta, shift, _, covariance = _refit(
+                points, index, patches, camera_position, settings, surfaces, (start, np.zeros(2)))
+            median = _median_distance(points, index, theta, shift, context)
+            if _believable(theta, shift, settings) and median < best[0]:
+                best = (median, theta, shift, covariance)
+    if math.isinf(best[0]):
+        return theta, shift, covariance  # nothing believable: the caller finds the fit ran off
+    return best[1], best[2], best[3]
+
+
+def _median_distance(points: Array, index: int, theta: float, shift: Array, context: PlacementContext) -> float:
+    moved = _apply(points, context.patches.tile_centroid[index], theta, shift)
+    projection = _project(context.patches, context.surfaces, moved, index, 0.08, context.camera_position)
+    return float(np.median(np.where(projection.found, projection.distance, 0.08)))
+
+
+def _believable(theta: float, shift: Array, settings: MisplacementSettings) -> bool:
+    """A motion of G within what a tile slips when placed (not a fit that ran off)."""
+    return float(np.hypot(*shift)) <= settings.max_shift + 0.05 and abs(theta) <= settings.max_turn + 0.1
 
 
 def _summarise(

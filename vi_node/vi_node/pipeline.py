@@ -52,6 +52,7 @@ from vi_node.misplacement import (
 )
 from vi_node.patches import PlanarPatches
 from vi_node.periodicity import periodic_shifts
+from vi_node.pose_hypotheses import DepthImage, fitted_pose_explains, pixels_at_fitted_pose
 from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior, pose_error
 from vi_node.raycast import VirtualScan, VirtualScene
 from vi_node.rival_fits import agreed, distinct
@@ -460,7 +461,7 @@ class InspectionPipeline:
             self._classify_by_evidence(evidence, result)
             scan.timer.lap("classify")
             assert nearest is not None
-            self._judge_placement(nearest[0], pose, result, suspects)
+            self._judge_placement(nearest[0], pose, result, suspects, scan)
             scan.timer.lap("misplacement")
         moved = [self.model.tile_ids.index(t) for t in result.moved_tiles()]
         doubt = _doubtful(evidence, self.settings, moved)
@@ -650,7 +651,7 @@ class InspectionPipeline:
         ]
 
     def _judge_placement(
-        self, points: ScanPoints, pose: Array, result: ScanResult, suspects: Sequence[int] = ()
+        self, points: ScanPoints, pose: Array, result: ScanResult, suspects: Sequence[int], scan: _Scan
     ) -> None:
         """Per-tile residuals, and MISPLACED for tiles whose points a planar motion explains better
         and whose pixels agree, or whose pixels say something of another shape lies there
@@ -665,7 +666,7 @@ class InspectionPipeline:
                 surfaces=model.scene,
                 solid=[t.state != TileState.MISSING for t in result.tiles],
                 disturbed=[t.see_through + t.in_front >= 1 for t in result.tiles],
-                suspects=tuple(suspects),
+                suspects=(*suspects, *self._disturbed_tiles(result)),
             ),
             self.misplacement_settings,
         )
@@ -678,7 +679,7 @@ class InspectionPipeline:
                 disagree=tile.see_through + tile.in_front,
                 blank=tile.blank,
                 settings=self.misplacement_settings,
-            )
+            ) or (fit.misplaced and self._fitted_pose_explains(scan, pose, index, fit.offset, tile.physical))
             if fit.judged:
                 result.misplacement[tile.tile_id] = (misplaced, fit.offset, fit.residual)
             if misplaced:
@@ -689,6 +690,33 @@ class InspectionPipeline:
                         tile.physical, tile.see_through + tile.blank, self.misplacement_settings))):
                 tile.state, tile.offset = TileState.MISPLACED, (0.0, 0.0, 0.0)
                 result.misplacement[tile.tile_id] = (True, tile.offset, fit.residual)
+            elif tile.state is TileState.PRESENT and fit.misplaced:
+                # its points moved, its pixels cannot tell: no verdict rather than "present and in place"
+                tile.state = TileState.OCCLUDED
+
+    def _fitted_pose_explains(self, scan: _Scan, pose: Array, index: int, offset: tuple[float, float, float],
+                              planned_agree: int) -> bool:
+        """Whether the depth image bears out a refit its pixels at the planned pose cannot confirm
+        (little of a tile that slipped far still covers its place): `pose_hypotheses`."""
+        settings = self.misplacement_settings
+        window = scan.camera.box_roi(pose, self.model.low, self.model.high)
+        masked = _either(scan.masked, scan.unjudged)
+        image = DepthImage(scan.cloud, scan.camera, pose, window, None if masked is None else masked[window])
+        fitted = pixels_at_fitted_pose(self.model.tiles, index, offset, image, self.evidence_settings,
+                                       (self.settings.min_range, self.settings.max_range))
+        return fitted_pose_explains(planned_agree, fitted, settings.fitted_share, settings.fitted_gain,
+                                    settings.fitted_pixels)
+
+    def _disturbed_tiles(self, result: ScanResult) -> list[int]:
+        """Tiles (indices) whose pixels disagree with their planned pose on a good share: refitted
+        whatever the first linearised step says, which underestimates a turn of 15 degrees or more
+        (a block of pyramid_91 turned 30 degrees stepped 3)."""
+        settings = self.misplacement_settings
+        return [
+            k for k, t in enumerate(result.tiles)
+            if t.see_through + t.in_front >= max(settings.disturbed_pixels,
+                                                 settings.disturbed_share * (t.physical + t.see_through + t.in_front))
+        ]
 
     def _judge_again_without_moved_tiles(self, scan: _Scan, level: Array, first: ScanResult) -> ScanResult:
         """A misplaced tile pulls the alignment towards where it lies: search and align once more,
