@@ -103,9 +103,9 @@ def nearest_seed_distances(graph: AssemblyGraph, seeds: list[int]) -> FloatArray
         d, u = heappop(heap)
         if d > distance[u]:
             continue  # reached sooner by another path
-        for k in range(start[u], start[u + 1]):
-            v = neighbours[k]
-            through_u = d + weights[k]
+        first, last = start[u], start[u + 1]
+        for v, weight in zip(neighbours[first:last], weights[first:last], strict=True):
+            through_u = d + weight
             if through_u < distance[v]:
                 distance[v] = through_u
                 heappush(heap, (through_u, v))

@@ -36,7 +36,8 @@ def _point_sets() -> list[np.ndarray]:
     ground = [g.centroids[g.layer == 0, :2] for g in GRAPHS]
     scattered = [rng.random((int(rng.integers(3, 300)), 2)) * rng.random() for _ in range(40)]
     on_a_grid = [rng.integers(0, 15, (int(rng.integers(3, 200)), 2)) * 0.05 for _ in range(40)]
-    return [p for p in ground + scattered + on_a_grid if len(p) >= 2]
+    bunched_with_an_outlier = [np.vstack([rng.random((400, 2)) * 0.2, [[50.0, 40.0]]])]
+    return [p for p in ground + scattered + on_a_grid + bunched_with_an_outlier if len(p) >= 2]
 
 
 @pytest.mark.parametrize("points", _point_sets())
