@@ -46,8 +46,11 @@ def critical_path(graph: AssemblyGraph) -> float:
     place = graph.place.tolist()
     supports = graph.support_lists
     for t in graph.topological_order.tolist():
-        ready = max((earliest_end[s] for s in supports[t]), default=0.0)
-        earliest_end[t] = max(ready, head[t]) + place[t]
+        start = head[t]  # the tile is there; then the last of its supports must be placed
+        for s in supports[t]:
+            if earliest_end[s] > start:
+                start = earliest_end[s]
+        earliest_end[t] = start + place[t]
     tail = [e + back for e, back in zip(earliest_end, graph.travel.tolist(), strict=True)]
     return max(tail, default=0.0)
 

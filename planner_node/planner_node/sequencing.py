@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner_node.assembly_graph import AssemblyGraph
+from planner_node.schedule_sim import SimulationResult
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -57,6 +58,9 @@ class Sequencing:
     orders: list[list[int]]  # graph indices per robot, in placement order
     owner: IntArray  # who places each tile (differs from the partition only after helping)
     helped: int  # tiles placed by a robot other than their region's
+    # the team simulation of `orders` when the pass itself is it (no robot ever started a tile
+    # later than it was back at its caches), else None: simulate_orders works it out
+    schedule: SimulationResult | None = None
 
 
 _bottom_levels: WeakKeyDictionary[AssemblyGraph, list[float]] = WeakKeyDictionary()
@@ -171,6 +175,14 @@ class TeamSequencer:
         self.idle = [False] * n_robots  # found nothing to do; woken when a tile of its becomes ready
         self.robots_free: Heap = [(0.0, r) for r in range(n_robots)]  # (time, robot) events
         self.helped = 0
+        # The pass's own times, while they are the simulation's (see `schedule`): until some robot
+        # starts a tile later than it is back at its caches (it was idle in between), a robot
+        # following the orders as fixed does exactly what the pass did, to the last bit.
+        self.delayed = False
+        nan = float("nan")
+        self.start, self.arrive, self.place_start = [nan] * n, [nan] * n, [nan] * n
+        self.place_end, self.finish = [nan] * n, [nan] * n
+        self.busy, self.wait = [0.0] * n_robots, [0.0] * n_robots  # summed in each robot's order
 
     def run(self) -> Sequencing:
         """Schedule every tile, robot by robot as each comes back to its caches."""
@@ -188,7 +200,7 @@ class TeamSequencer:
             heappush(robots_free, (free_at[robot], robot))
         if sum(len(o) for o in self.orders) != len(self.owner):
             raise RuntimeError("sequencing left tiles unscheduled: the support relation has a cycle")
-        return Sequencing(self.orders, np.array(self.owner, dtype=np.int64), self.helped)
+        return Sequencing(self.orders, np.array(self.owner, dtype=np.int64), self.helped, self.schedule())
 
     def offer_floor_tiles(self) -> None:
         """Tiles on the floor wait for nothing: every robot may start with one."""
@@ -274,10 +286,34 @@ class TeamSequencer:
         self.remaining_work[robot] -= self.cost[t]
         travel, supports_end = self.travel_time[t], self.supports_end[t]
         arrive = now + self.pick_time[t] + travel
-        end = (supports_end if supports_end > arrive else arrive) + self.place_time[t]
+        begin = supports_end if supports_end > arrive else arrive
+        end = begin + self.place_time[t]
+        if now != self.free_at[robot]:
+            self.delayed = True
         self.free_at[robot] = end + travel
         self.orders[robot].append(t)
+        if not self.delayed:  # as schedule_sim.simulate_orders works them out
+            self.start[t], self.arrive[t], self.place_start[t] = now, arrive, begin
+            self.place_end[t], self.finish[t] = end, end + travel
+            self.wait[robot] += begin - arrive
+            self.busy[robot] += self.pick_time[t] + 2.0 * travel + self.place_time[t]
         return end
+
+    def schedule(self) -> SimulationResult | None:
+        """The simulation of the orders, when the pass was it (see __init__)."""
+        if self.delayed:
+            return None
+        return SimulationResult(
+            start=np.array(self.start),
+            arrive=np.array(self.arrive),
+            place_start=np.array(self.place_start),
+            place_end=np.array(self.place_end),
+            finish=np.array(self.finish),
+            robot_busy=np.array(self.busy),
+            robot_wait=np.array(self.wait),
+            robot_finish=np.array(self.free_at),
+            blocked=(),
+        )
 
     def take_over(self, t: int, *, robot: int) -> None:
         """Hand tile t to the robot that helps with it."""

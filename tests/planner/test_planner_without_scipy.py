@@ -17,6 +17,8 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 from planner_node.assembly_graph import AssemblyGraph, build_graph, connected_components
 from planner_node.footprint import convex_hull_indices, nearest_neighbour_distances
 from planner_node.initial_allocation import initial_allocation, nearest_seed_distances
+from planner_node.schedule_sim import simulate_orders
+from planner_node.sequencing import Policy, sequence_tiles
 from planner_node.structure_generators import GENERATORS
 from tiling_assembly.structure_file import load_structure, parse_structure
 from tiling_assembly.time_model import TimeModel
@@ -109,3 +111,19 @@ def test_the_graphs_layers_and_dependents_are_the_structures(structure: object) 
     ids = graph.tile_ids.tolist()
     assert graph.layer.tolist() == [structure.layers[t] for t in ids]
     assert [tuple(ids[d] for d in deps) for deps in graph.dependent_lists] == [structure.supported_by[t] for t in ids]
+
+
+@pytest.mark.parametrize("graph", GRAPHS)
+def test_a_pass_without_delays_is_its_own_simulation(graph: AssemblyGraph) -> None:
+    """Sequencings that give their schedule give exactly what simulating their orders gives."""
+    owner = initial_allocation(graph, 4).owner
+    for policy, margin in ((Policy.CRITICAL_PATH, None), (Policy.MAX_SLACK, None), (Policy.CRITICAL_PATH, 0.0),
+                           (Policy.CRITICAL_PATH, 10.0)):
+        sequencing = sequence_tiles(graph, owner, 4, policy, None, margin)
+        if sequencing.schedule is None:
+            continue
+        simulated = simulate_orders(graph, sequencing.orders)
+        for name in ("start", "arrive", "place_start", "place_end", "finish", "robot_busy", "robot_wait",
+                     "robot_finish"):
+            assert np.array_equal(getattr(sequencing.schedule, name), getattr(simulated, name)), name
+        assert sequencing.schedule.blocked == simulated.blocked
