@@ -93,18 +93,15 @@ class _Reader:
         outside = _OUTSIDE_ASCII_SUBSET if text.isascii() else re.compile(_OUTSIDE_SUBSET)
         if outside.search(text) or _MARKER_LINE.search(text):
             raise _NotPlainError
-        self.lines: list[tuple[int, str]] = []  # (column, content) of the lines that hold a node
-        lines, has_comments = self.lines, "#" in text
-        for line in text.split("\n"):
-            content = line.lstrip(" ")
-            if not content:
-                continue
-            column = len(line) - len(content)
-            if has_comments and "#" in content:
-                if content[0] == "#":
-                    continue
-                content = _without_comment(content)
-            lines.append((column, content.rstrip(" ")))
+        # (column, content) of the lines that hold a node
+        self.lines: list[tuple[int, str]] = [
+            (len(line) - len(content), content.rstrip(" "))
+            for line in text.split("\n")
+            if (content := line.lstrip(" "))
+        ]
+        if "#" in text:
+            self.lines = [(column, _without_comment(content)) if "#" in content else (column, content)
+                          for column, content in self.lines if content[0] != "#"]
         self.next = 0  # index in `lines` of the next line to read
         self.scalars: dict[str, Any] = {}  # text -> value: big structures repeat their numbers
 
@@ -135,8 +132,8 @@ class _Reader:
             raise _NotPlainError
 
     def mapping(self, column: int) -> dict[Any, Any]:
-        lines, mapping, at = self.lines, {}, self.next  # `at`: a local copy of `next`, for speed
-        while at < len(lines) and lines[at][0] == column:
+        lines, mapping, at, count = self.lines, {}, self.next, len(self.lines)  # locals, for speed
+        while at < count and lines[at][0] == column:
             match = _KEY_LINE.match(lines[at][1])
             if match is None:
                 break
@@ -159,8 +156,8 @@ class _Reader:
         return mapping
 
     def sequence(self, column: int) -> list[Any]:
-        lines, items, at = self.lines, [], self.next  # `at`: a local copy of `next`, for speed
-        while at < len(lines):
+        lines, items, at, count = self.lines, [], self.next, len(self.lines)  # locals, for speed
+        while at < count:
             start, content = lines[at]
             if start != column or not (content[:2] == "- " or content == "-"):
                 break
