@@ -169,11 +169,10 @@ class RegionBorders:
                     if other is None:
                         search_of[v] = here
                         queue.append(v)
-                    elif other >= 0:
-                        a, b = root(other), root(here)
-                        if a != b:
-                            parent[a] = b
-                            here = b
+                    elif other >= 0 and other != here:  # `here` is a root: no search meets itself
+                        met = root(other)
+                        if met != here:
+                            parent[met] = here
                             groups -= 1
                             if groups == 1:
                                 return True
