@@ -117,27 +117,27 @@ def connected_components(start: IntArray, neighbours: IntArray) -> tuple[int, In
     every edge): their number and each node's piece, numbered as scipy.sparse.csgraph numbers them
     (in the order of each piece's lowest node), without importing scipy.
 
-    Every node takes the lowest label among its own and its neighbours', then the label of its
-    label (pointer jumping), until nothing changes: then every node is labelled with the lowest
-    node of its piece.
+    Union by hooking, as arrays: every node points to a node of its piece with a lower index (at
+    first itself), pointers are followed to the end (pointer jumping), then wherever an edge joins
+    two such ends, the higher end is pointed at the lowest end it meets. Every end either hooks or
+    is hooked onto, so their number at least halves each round; the lowest node of a piece never
+    hooks, and ends as the piece's only end.
     """
     n = len(start) - 1
+    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(start))
     label = np.arange(n, dtype=np.int64)
-    has_neighbours = start[1:] > start[:-1]
-    rows_with = start[:-1][has_neighbours]
     while True:
-        lowest = label.copy()
-        if len(rows_with):
-            lowest[has_neighbours] = np.minimum(label[has_neighbours],
-                                                np.minimum.reduceat(label[neighbours], rows_with))
-        while True:
-            jumped = lowest[lowest]
-            if np.array_equal(jumped, lowest):
-                break
-            lowest = jumped
-        if np.array_equal(lowest, label):
+        ends_a, ends_b = label[rows], label[neighbours]
+        apart = ends_a != ends_b
+        if not apart.any():
             break
-        label = lowest
+        higher, lower = np.maximum(ends_a[apart], ends_b[apart]), np.minimum(ends_a[apart], ends_b[apart])
+        np.minimum.at(label, higher, lower)
+        while True:  # follow the pointers to their ends
+            jumped = label[label]
+            if np.array_equal(jumped, label):
+                break
+            label = jumped
     roots, piece = np.unique(label, return_inverse=True)
     return len(roots), piece.astype(np.int64)
 

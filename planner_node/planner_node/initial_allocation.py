@@ -9,8 +9,8 @@ Starting tiles are ground-layer tiles on the exterior of the footprint: those wh
 arc length around the hull, counter-clockwise from the leftmost (-x) side, so that robot 1 starts
 on the left. A footprint thinner than the spacing between seeds (a wall: its hull's two long
 sides are the same tiles) is treated as a line instead: seeds at equal steps along its long axis.
-One Dijkstra from all seeds at once then gives every tile to the robot whose
-seed is nearest through the contact graph; every region is a shortest-path tree, hence connected.
+One Dijkstra from all seeds at once then gives every tile to the robot whose seed is nearest
+through the contact graph; every region is a shortest-path tree, hence connected.
 
 A structure in several separate pieces gets seeds per piece in proportion to the piece's work;
 pieces too light for a robot of their own are dealt whole to the least loaded robot.
@@ -94,7 +94,7 @@ def nearest_seed_distances(graph: AssemblyGraph, seeds: list[int]) -> FloatArray
     neighbours = graph.neighbour_index.tolist()
     weights = graph.neighbour_distance.tolist()
     distance = [math.inf] * len(graph)
-    heap = []
+    heap: list[tuple[float, int]] = []
     for s in seeds:
         distance[s] = 0.0
         heap.append((0.0, s))

@@ -127,3 +127,22 @@ def test_a_pass_without_delays_is_its_own_simulation(graph: AssemblyGraph) -> No
                      "robot_finish"):
             assert np.array_equal(getattr(sequencing.schedule, name), getattr(simulated, name)), name
         assert sequencing.schedule.blocked == simulated.blocked
+
+
+def test_pieces_of_long_chains_and_random_graphs_are_scipys() -> None:
+    """Also where node numbers run across a chain at random (hooking, not label spreading)."""
+    rng = np.random.default_rng(8)
+    edge_lists = [(5000, rng.permutation(5000)), (7, np.arange(0))]
+    for _ in range(20):
+        n = int(rng.integers(1, 800))
+        edge_lists.append((n, rng.integers(0, n, 2 * int(rng.integers(0, 2 * n)))))
+    for n, ends in edge_lists:
+        a, b = (ends[:-1], ends[1:]) if len(ends) == n else (ends[0::2], ends[1::2])
+        a, b = a[a != b], b[a != b]
+        matrix = csr_matrix((np.ones(2 * len(a)), (np.concatenate([a, b]), np.concatenate([b, a]))), shape=(n, n))
+        matrix.sum_duplicates()
+        matrix.sort_indices()
+        count, labels = connected_components(matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64))
+        expected_count, expected = scipy_components(matrix, directed=False)
+        assert count == expected_count
+        assert np.array_equal(labels, expected)
