@@ -51,7 +51,7 @@ def read_plain_yaml(text: str) -> Any:
     docstring). Duplicate keys are also NOT_PLAIN: the strict loader reports them."""
     try:
         return _Reader(text).document()
-    except _NotPlainError:
+    except (_NotPlainError, RecursionError):  # nesting deeper than Python's stack: PyYAML's to judge
         return NOT_PLAIN
 
 
