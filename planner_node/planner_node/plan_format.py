@@ -44,11 +44,12 @@ def plan_table(plan: Plan, structure: Structure) -> str:
         f"Plan for '{plan.structure_name}' by the {plan.method.value} method, {len(plan.tasks)} robots",
         "",
     ]
+    labels = {name: type_label(name) for name in structure.tile_types}  # once per type, not per tile
     for first in range(0, len(plan.tasks), ROBOTS_PER_BLOCK):
         block = list(enumerate(plan.tasks[first : first + ROBOTS_PER_BLOCK], start=first + 1))
         columns = []
         for k, task in block:
-            rows = [(type_label(structure.tiles[t].type_name), str(t)) for t in task.tile_ids]
+            rows = [(labels[structure.tiles[t].type_name], str(t)) for t in task.tile_ids]
             title = f"Robot {k}" if task.robot_name == f"robot{k}" else f"Robot {k} ({task.robot_name})"
             width = max([len(title)] + [len(name) for name, _ in rows])
             id_width = max([len("Tile ID")] + [len(i) for _, i in rows])
