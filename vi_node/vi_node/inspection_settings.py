@@ -169,7 +169,7 @@ class InspectionSettings:
         MISPLACEMENT.shift, "default: flag a tile whose points say it moved this far (m) ..."
     )
     misplacement_yaw: float = setting(MISPLACEMENT.turn, "default: ... or turned this much (rad)")
-    misplacement_points: int = setting(3000, "default: judge placement on at most this many candidates")
+    misplacement_points: int = setting(8000, "default: judge placement on at most this many candidates")
 
     @property
     def inspection_mode(self) -> InspectionMode:

@@ -260,6 +260,8 @@ def _judge_tile(
     turned = abs(offset[2]) >= settings.turn and refit.turn_sigmas >= settings.turn_significance
     # a fit that ran off (further than a tile slips when placed) explains nothing
     believable = math.hypot(offset[0], offset[1]) <= settings.max_shift and abs(offset[2]) <= settings.max_turn
+    if not turned:  # a turn within the noise is no part of the motion (it could push the tile into a neighbour)
+        offset = (offset[0], offset[1], 0.0)
     moved = (shifted or turned) and believable and _fits_among(context.tiles, index, offset, context.solid)
     # the refit must explain the points better; a clear turn of a small tile barely changes the
     # distances (the noise is as large as the corners' motion), its significance speaks for it
