@@ -45,6 +45,7 @@ PAPER = load_structure(PAPER_FILE)
 START = (-0.6, -0.9)  # robot1's start in config/tiling_sim.yaml
 PLACEMENT_EVENTS = {"place_started", "dropped", "placed", "already_present", "refused", "complete"}
 PHASE_END_ROUNDING = 1e-6  # s: a phase ends at a /clock stamp, whole nanoseconds
+DISCOVERY_SETTLING = 2.0  # s: long enough for the server side to discover a newly seen client
 
 
 def _command(executable: str, namespace: str | None, *extra: str) -> list[str]:
@@ -90,6 +91,13 @@ class Simulator:
         return subprocess.Popen(command, cwd=REPO, env=self.domain.environ(), stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True)
 
+    def wait_for_the_body(self, timeout: float = 60.0) -> None:
+        """Until sim_robot serves place_tile, and a little longer: discovery is not symmetric, and
+        a goal sent the moment this side sees the server can be answered before the server knows
+        this side's reply reader, and the answer lost (once in a full run, on a fresh clone)."""
+        assert self.spin_until(self.place.server_is_ready, timeout), "sim_robot never served place_tile"
+        self.spin_until(lambda: False, DISCOVERY_SETTLING)
+
     def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
         return spin_until(self.executor, predicate, timeout)
 
@@ -124,7 +132,7 @@ class Simulator:
 def sim() -> Iterator[Simulator]:
     bed = Simulator()
     try:
-        assert bed.spin_until(bed.place.server_is_ready, 60.0), "sim_robot never served place_tile"
+        bed.wait_for_the_body()
         assert bed.spin_until(bed.snapshot.service_is_ready, 10.0), "sim_world never served /sim/snapshot"
         yield bed
     finally:
@@ -233,7 +241,7 @@ def test_a_goal_sent_before_the_world_is_found_waits_for_it() -> None:
     """A body serves its action at once (the team's clients find it early); the world may come later."""
     late = Simulator(world_later=True)
     try:
-        assert late.spin_until(late.place.server_is_ready, 60.0), "sim_robot never served place_tile"
+        late.wait_for_the_body()
         handle = late.send_placement(3)  # a floor tile
         result = handle.get_result_async()
         late.spin_until(result.done, 2.0)
