@@ -76,15 +76,17 @@ DYNAMIC = {
 UNDOCUMENTED: dict[tuple[str, str], str] = {
     **{("vi_explorer", name): "config/vi_node.yaml is also `classify --params`'s file, which refuses names "
        "that are not vi_node's; the explorer's own settings keep their defaults"
-       for name in ("viewpoint_radii", "viewpoints_per_ring", "settle_time", "scan_timeout", "travel_cost")},
+       for name in ("viewpoint_radii", "viewpoints_per_ring", "settle_time", "scan_timeout", "travel_cost",
+                    "claim_clearance", "shared_weight", "claim_age", "idle_wait")},
     **{(node, name): "given by the experiment runner on the command line (the trial's structure, team and seed)"
-       for node in ("sim_world", "sim_robot", "sim_vi") for name in ("structure_file", "robot_names", "seed")
+       for node in ("sim_world", "sim_robot", "sim_vi")
+       for name in ("structure_file", "robot_names", "vi_robot_names", "seed")
        if (node, name) != ("sim_vi", "structure_file")},  # sim_vi's file vi_node.yaml names it (vi_node's)
     **{("sim_world", name): "given by the experiment runner per trial (faults, start signal)"
        for name in ("removals", "removal_window_start", "removal_window_end", "wait_for_start", "misplacements",
                     "wrong_tiles")},
-    ("sim_robot", "robot_size"): "the assembly robots' box; sim_vi and vi_node read it from config/vi_node.yaml, "
-    "where it is vi_node's, and sim_robot is not given that file",
+    **{(node, "robot_size"): "the robots' box; sim_vi and vi_node read it from config/vi_node.yaml, where it is "
+       "vi_node's, and sim_robot and sim_world are not given that file" for node in ("sim_robot", "sim_world")},
     ("sim_vi", "robots_in_view"): "a switch for tests of the simulated Kinect; the experiment always shows the robots",
 }
 

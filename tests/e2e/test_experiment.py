@@ -101,6 +101,24 @@ def test_removed_tile_is_detected_auctioned_and_replaced(experiment, tmp_path: P
         in result.stdout
 
 
+def test_two_vi_robots_look_from_apart_and_their_scans_find_a_removed_tile(experiment, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    config = config_with(tmp_path / "config", "auction_node", unconfirmed_report_timeout=600.0)
+    result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3", "--inspection-only",
+                              "--vi-robots", "2", "--config", str(config), real_time_factor=20.0, timeout=360.0)
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    assert data["vi_robots"] == ["vi1", "vi2"] and "+ 2 VI robots" in result.stdout
+    trial = _only_trial(data)
+    assert trial["complete"] and trial["removed"] == 1 and trial["detected"] == 1
+    assert set(trial["scans_judged_by"]) == {"vi1", "vi2"} and min(trial["scans_judged_by"].values()) >= 5
+    logs = tmp_path / "report" / "logs" / "trial_01"
+    claimed = {}
+    for robot in ("vi1", "vi2"):
+        lines = (logs / f"{robot}_vi_explorer.log").read_text().splitlines()
+        claimed[robot] = [line.split("next viewpoint ")[1].split(",")[:2] for line in lines if "next viewpoint" in line]
+        assert claimed[robot], f"{robot} never chose a viewpoint"
+    assert claimed["vi1"][0] != claimed["vi2"][0]  # they start apart and look from near where they stand
+
+
 def test_a_robot_finding_a_support_absent_gets_it_replaced_without_inspection(experiment) -> None:  # type: ignore[no-untyped-def]
     result, data = experiment("--trials", "1", "--removals", "1", "--seed", "3", "--no-inspection")
     trial = _only_trial(data)

@@ -79,6 +79,8 @@ def test_every_setting_has_a_description_and_the_layout_is_shared() -> None:
     ({"robot_names": [""]}, "'robot_names' is empty"),
     ({"drop_probability": 2.0}, "must lie in [0, 1]"),
     ({"place_time": 1.0}, "unknown parameter 'place_time'"),
+    ({"vi_robot_names": ["vi1", "vi1"]}, "'vi_robot_names' needs one or more different names"),
+    ({"vi_robot_names": ["vi1", "vi2"], "vi_start_pose": [0.0, 1.0]}, "'vi_start_pose' needs x, y, yaw"),
 ])
 def test_bad_world_settings_are_named_in_one_line(values: dict, message: str) -> None:  # type: ignore[type-arg]
     with pytest.raises(ValueError, match="^sim_world: .*" + re.escape(message)):
@@ -93,6 +95,22 @@ def test_integers_count_as_floats_and_start_positions_spread_round_the_structure
     given = RobotBodySettings(robot_start_xy=[1.0, 2.0, 3.0, 4.0])
     assert given.robot_starts(PAPER) == {"robot1": (1.0, 2.0), "robot2": (3.0, 4.0)}
     assert settings.motion().place_time == 9.0 and settings.motion().base_size == (0.33, 0.33)
+
+
+def test_several_vi_robots_start_round_the_structure_unless_placed() -> None:
+    one = WorldSettings.from_values({"structure_file": STRUCTURE})
+    assert one.vi_starts(PAPER) == {"vi": (0.9, 0.0, pytest.approx(math.pi))}
+    two = WorldSettings.from_values({"structure_file": STRUCTURE, "vi_robot_names": ["vi1", "vi2"]})
+    starts = two.vi_starts(PAPER)
+    (low, high) = PAPER.bounds
+    centre = ((low[0] + high[0]) / 2, (low[1] + high[1]) / 2)
+    assert starts["vi1"] == (0.9, 0.0, pytest.approx(math.pi))
+    x, y, yaw = starts["vi2"]  # half a turn round the centre, still facing it
+    assert (x + 0.9 - 2 * centre[0], y - 2 * centre[1]) == (pytest.approx(0.0), pytest.approx(0.0))
+    assert math.cos(yaw) == pytest.approx(1.0)
+    placed = WorldSettings.from_values({"structure_file": STRUCTURE, "vi_robot_names": ["vi1", "vi2"],
+                                        "vi_start_pose": [1.0, 0.0, 3.0, -1.0, 0.0, 0.0]})
+    assert placed.vi_starts(PAPER) == {"vi1": (1.0, 0.0, 3.0), "vi2": (-1.0, 0.0, 0.0)}
 
 
 # --- where the robots stand -----------------------------------------------------------------
@@ -140,6 +158,22 @@ def test_a_hold_nobody_ends_lapses() -> None:
     assert not hold.lapsed(11.9) and hold.pace is Pace.STOPPED
     assert hold.lapsed(12.1) and hold.pace is Pace.FAST
     assert not hold.lapsed(20.0)
+
+
+def test_with_two_vi_robots_the_slowest_hold_sets_the_pace() -> None:
+    hold = ScanHold(limit=2.0)
+    hold.hold(5_000, wall=1.0, robot="vi1")
+    hold.published(5_000, robot="vi1")
+    assert hold.pace is Pace.REAL
+    hold.hold(6_000, wall=1.1, robot="vi2")
+    assert hold.pace is Pace.STOPPED  # vi2's frame is not rendered yet
+    hold.published(6_000, robot="vi1")  # vi2's stamp, vi1's name: not vi2's frame
+    assert hold.pace is Pace.STOPPED
+    hold.published(6_000, robot="vi2")
+    assert hold.pace is Pace.REAL
+    assert hold.release(5_000, robot="vi1") and hold.pace is Pace.REAL  # vi2 is still judged
+    assert not hold.release(6_000, robot="vi1")
+    assert hold.lapsed(3.2) == ["vi2"] and hold.pace is Pace.FAST
 
 
 # --- the Kinect's frames ----------------------------------------------------------------------

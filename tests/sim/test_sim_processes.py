@@ -60,8 +60,9 @@ class Simulator:
     """sim_world, /robot1's sim_robot and /vi's sim_vi on a ROS domain of their own, and a node of
     the test that watches them; `world_later`: the world is started by `start_world`."""
 
-    def __init__(self, world_later: bool = False) -> None:
+    def __init__(self, world_later: bool = False, world_arguments: tuple[str, ...] = ()) -> None:
         self.domain = fresh_domain()
+        self.world_arguments = world_arguments
         body = ("-p", "use_sim_time:=true")
         self.processes = {
             "sim_robot": self._start(_command("sim_robot", "/robot1", *body)),
@@ -85,7 +86,8 @@ class Simulator:
         self.snapshot = self.node.create_client(SimSnapshot, "/sim/snapshot")
 
     def start_world(self) -> None:
-        self.processes["sim_world"] = self._start(_command("sim_world", None, "-p", "removals:=0"))
+        self.processes["sim_world"] = self._start(_command("sim_world", None, "-p", "removals:=0",
+                                                           *self.world_arguments))
 
     def _start(self, command: list[str]) -> subprocess.Popen[str]:
         return subprocess.Popen(command, cwd=REPO, env=self.domain.environ(), stdout=subprocess.PIPE,
@@ -275,3 +277,26 @@ def test_the_clock_waits_a_decision_window_for_the_robots_next_goal(sim: Simulat
     later = [stamp for wall, stamp in ticks if wall > done + 1.5]
     assert len(held) == 1, sorted(held)
     assert later and min(later) > held.pop()
+
+
+def test_a_robot_standing_at_a_cache_keeps_another_from_it_until_patience_runs_out() -> None:
+    """robot2 (no body: it never moves) stands on the long rectangles' cache. robot1, sent for one,
+    finds no other stop within reach of the cache, so it waits there `room_patience` s (60 s of
+    simulated time in config/tiling_sim.yaml) and then goes in anyway, and the world says so."""
+    cache = PAPER.caches["long_rectangle"]
+    crowded = Simulator(world_arguments=("-p", f"robot_start_xy:=[{START[0]}, {START[1]}, {cache[0]}, {cache[1]}]"))
+    try:
+        crowded.wait_for_the_body()
+        result = crowded.place_tile(1)
+        assert result.error_code == PlaceTile.Result.SUCCEEDED, result.message
+        motion = RobotBodySettings().motion()
+        tile = PAPER.tiles[1]
+        phases = placement_phases(motion, START, cache, (tile.position[0], tile.position[1]),
+                                  [convex_hull_2d(t.vertices[:, :2]) for t in PAPER.tiles.values()])
+        planned = sum(p.duration for p in phases)
+        assert result.duration == pytest.approx(planned + 60.0, abs=0.01)
+        waits = [e for e in crowded.events if e["event"] == "room_wait"]
+        assert [(w["robot"], w["in_the_way"], w["seconds"], w["forced"]) for w in waits] == \
+            [("robot1", ["robot2"], pytest.approx(60.0, abs=0.01), True)]
+    finally:
+        crowded.close()

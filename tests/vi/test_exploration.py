@@ -56,6 +56,21 @@ def test_choose_weighs_gain_against_driving_and_avoids_failed_viewpoints() -> No
     assert exploration.choose([here, (0.5, 0.0, 0.0)], here, 40.0, [2.0, 1.6]) == (1, pytest.approx(1.1))
 
 
+def test_another_vi_robots_claim_keeps_this_one_away_from_its_place_and_its_tiles() -> None:
+    exploration = Exploration(WEIGHTS, travel_cost=0.0, claim_clearance=0.5, shared_weight=0.25)
+    exploration.expect([1, 2, 3])
+    exploration.judged({1: OCCLUDED, 2: OCCLUDED, 3: PRESENT}, now=0.0)
+    priority = exploration.priority(now=30.0, left_to_others={2, 99})
+    assert priority[1] == 2.0 and priority[2] == pytest.approx(0.5)  # the other's view resolves tile 2
+    assert 99 not in priority and priority[3] == pytest.approx(0.5)  # only the stale weight of a present tile
+    candidates = [(0.0, 1.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0)]
+    here = (1.0, 0.0, 0.0)
+    assert exploration.choose(candidates, here, 30.0, [5.0, 3.0, 1.0])[0] == 0
+    assert exploration.choose(candidates, here, 30.0, [5.0, 3.0, 1.0], claimed=[(0.1, 1.2, 0.0)])[0] == 1
+    every = [(0.0, 1.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0)]
+    assert exploration.choose(candidates, here, 30.0, [5.0, 3.0, 1.0], claimed=every)[0] == 0  # none left: the first
+
+
 def test_ring_viewpoints_face_the_structure() -> None:
     structure = load_structure("config/structures/paper_14.yaml")
     poses = ring_viewpoints(structure, [1.0, 1.5], 6)

@@ -1,14 +1,15 @@
 """`experiment`: the paper's experiment in simulation (paper section 3), the product's main job.
 
-    ros2 run tiling_sim experiment [--structure FILE] [--robots N] [--trials N] [--removals N]
-                                   [--misplacements N] [--wrong-tiles N]
+    ros2 run tiling_sim experiment [--structure FILE] [--robots N] [--vi-robots N] [--trials N]
+                                   [--removals N] [--misplacements N] [--wrong-tiles N]
                                    [--seed N] [--real-time-factor X] [--report DIR]
 
 Every trial starts every node as its own OS process, exactly as on the robots (the simulated
 world, the planner, the auction node, one assembly node per robot in /robotK, the inspection and
-exploration nodes of the VI robot in /vi), lets them build the structure while the world removes
-tiles at random times (and, beyond the paper, lets chosen placements land shifted, turned or as a
-tile of the wrong type, for the team to find and repair), and stops them all. A first trial
+exploration nodes of the VI robot in /vi, or of each VI robot in /vi1, /vi2, ...), lets them build
+the structure while the world removes tiles at random times (and, beyond the paper, lets chosen
+placements land shifted, turned or as a tile of the wrong type, for the team to find and repair),
+and stops them all. A first trial
 without faults gives the makespan to compare with. At the end it prints the initial allocation
 (Table 1), the allocation after detections of one trial (Table 2), the detection statistics beside
 the paper's, the repairs of wrong placements, whether every trial finished the structure, and
@@ -23,7 +24,7 @@ import random
 import shutil
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import rclpy
@@ -47,6 +48,11 @@ from tiling_sim.trial_record import TrialRecord, detection_stats
 from tiling_sim.virtual_hosts import VirtualHostsError
 
 HEAVY_NODES = {"sim_vi", "vi_node", "vi_explorer"}  # ray casting, point clouds (the world is light: the clock)
+
+
+def is_heavy(process: str, vi_robots: list[str]) -> bool:
+    """A VI robot's process (vi_node, viK_vi_node, viK_body, ...)."""
+    return process in HEAVY_NODES or any(process.startswith(f"{vi}_") for vi in vi_robots)
 
 
 @dataclass
@@ -104,13 +110,14 @@ def removals_per_trial(total: int, trials: int, seed: int) -> list[int]:
 class Experiment:
     def __init__(self, config: ExperimentConfig, network: TeamNetwork | None = None) -> None:
         self.config = config
-        self.network = network or TeamNetwork(config.network, config.robot_names)
+        self.network = network or TeamNetwork(config.network, config.robot_names, tuple(config.vi_robot_names))
         self.structure = load_structure(config.structure_file)
         model = TimeModel()
         self.estimated_makespan = model.workload(self.structure, self.structure.tile_ids) / config.robots
         self.sim_limit = 6.0 * self.estimated_makespan + 300.0
         self.run_id = f"{os.getpid()}-{time.time_ns()}"  # marks every process of this run
-        self.wall_limit = config.wall_limit or self.sim_limit / config.real_time_factor + 60.0
+        # each VI robot holds the clock for the scans its explorer waits for: more of them, slower runs
+        self.wall_limit = config.wall_limit or self.sim_limit / config.real_time_factor * (1 + config.vi_robots) + 60.0
         try:
             self.team = load_team(team_file(config.config_dir))
         except TeamFileError as error:
@@ -135,8 +142,13 @@ class Experiment:
         return ["-p", "robot_start_xy:=[0.0]"]
 
     def computers(self) -> list[tuple[TeamRole, str]]:
-        """Every computer of the team as (role, robot name; "" for the base station and the VI robot)."""
-        vi = [(self.team["vi_robot"], "")] if self.config.inspection else []
+        """Every computer of the team as (role, robot name; "" for the base station and a single VI
+        robot, whose processes keep their plain names). Several VI robots take the team file's VI
+        namespace with a number: /vi1, /vi2, ..."""
+        vi = []
+        if self.config.inspection:
+            role, names = self.team["vi_robot"], self.config.vi_robot_names
+            vi = [(role, "")] if len(names) == 1 else [(replace(role, namespace=name), name) for name in names]
         robots = [(self.team["assembly_robot"], robot) for robot in self.config.robot_names]
         return [(self.team["base_station"], ""), *vi, *robots]
 
@@ -175,6 +187,7 @@ class Experiment:
         """What the simulated world and bodies share: the structure, the robots, the trial's seed."""
         c = self.config
         return ["-p", f"structure_file:={c.structure_file}", "-p", f"robot_names:=[{', '.join(c.robot_names)}]",
+                "-p", f"vi_robot_names:=[{', '.join(c.vi_robot_names)}]",
                 "-p", f"seed:={setup.seed}", *self.start_positions_override()]
 
     def world_command(self, setup: TrialSetup) -> list[str]:
@@ -207,7 +220,7 @@ class Experiment:
             for name, argv in self.node_commands(setup).items():
                 # perception is throughput work: let coordination (auctions, robots) run first
                 group.start(name, self.network.command(name, argv), self.network.environment(name, env),
-                            nice=10 if name in HEAVY_NODES else 0)
+                            nice=10 if is_heavy(name, self.config.vi_robot_names) else 0)
             wall_start = time.monotonic()
             started_wall = None
             killed = False
@@ -302,6 +315,9 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser.add_argument("--structure", default=str(defaults.structure_file), help="structure file")
     parser.add_argument("--robots", type=int, default=defaults.robots,
                         help=f"assembly robots (default {defaults.robots})")
+    parser.add_argument("--vi-robots", type=int, default=defaults.vi_robots,
+                        help=f"scanning (VI) robots: /vi for one, /vi1, /vi2, ... for more "
+                        f"(default {defaults.vi_robots})")
     parser.add_argument("--trials", type=int, default=defaults.trials,
                         help=f"trials with faults (default {defaults.trials})")
     parser.add_argument("--removals", type=int, default=defaults.removals,
@@ -343,6 +359,8 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     args = parser.parse_args(argv)
     structure = Path(args.structure)
     time_factor = args.real_time_factor or (DEFAULT_NETNS_TIME_FACTOR if args.hosts else defaults.real_time_factor)
+    if args.vi_robots < 1:
+        parser.error("--vi-robots must be >= 1 (--no-inspection builds without scanning)")
     if args.robots < 1 or args.trials < 0 or min(args.removals, args.misplacements, args.wrong_tiles) < 0 \
             or time_factor <= 0:
         parser.error("--robots must be >= 1, --trials, --removals, --misplacements and --wrong-tiles >= 0, "
@@ -353,12 +371,13 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     try:
         network = NetworkSettings(args.hosts, args.link_loss, args.link_rate, args.link_delay,
                                   tuple(Outage.parse(text) for text in args.link_outage))
-        network.check(robots)
+        network.check(robots, ExperimentConfig(vi_robots=args.vi_robots).vi_robot_names)
         TeamNetwork.link_shape(network)  # checks the link's numbers
     except ValueError as error:
         parser.error(str(error))
     return ExperimentConfig(
-        structure_file=structure.resolve(), robots=args.robots, trials=args.trials, removals=args.removals,
+        structure_file=structure.resolve(), robots=args.robots, vi_robots=args.vi_robots, trials=args.trials,
+        removals=args.removals,
         misplacements=args.misplacements, wrong_tiles=args.wrong_tiles,
         seed=args.seed, real_time_factor=time_factor, network=network,
         report_dir=Path(args.report or f"{REPORTS}/{structure.stem}"), config_dir=Path(args.config).resolve(),
@@ -376,7 +395,8 @@ def main(argv: list[str] | None = None) -> int:
     network = None
     try:
         network = TeamNetwork.build(config.network, config.robot_names, f"{os.getpid()}",
-                                    dds_profile=str(config.config_dir / "fastdds_wifi.xml"))
+                                    dds_profile=str(config.config_dir / "fastdds_wifi.xml"),
+                                    vi_robots=config.vi_robot_names)
         rclpy.init(args=None)
         experiment = Experiment(config, network)
         config.report_dir.mkdir(parents=True, exist_ok=True)

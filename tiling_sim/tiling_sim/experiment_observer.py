@@ -33,6 +33,7 @@ from tiling_sim.trial_record import (
     Announcement,
     AwardRecord,
     PlanRecord,
+    RoomWait,
     Scan,
     StatusSample,
     TrialRecord,
@@ -99,11 +100,17 @@ class ExperimentObserver(Node):
             return
         if kind == "scan_judged":
             self.record.verdicts.append(
-                Verdict(float(data["t"]), float(data["wall_delay"]), str(data.get("problem", "")))
+                Verdict(float(data["t"]), float(data["wall_delay"]), str(data.get("problem", "")),
+                        str(data.get("robot", "")))
             )
             return
         if kind == "scan_unjudged":
             self.record.unjudged_scans.append(float(data["scan_t"]))
+            return
+        if kind == "room_wait":
+            self.record.room_waits.append(RoomWait(str(data["robot"]), float(data["since"]), float(data["seconds"]),
+                                                   tuple(data.get("in_the_way", ())), bool(data.get("forced")),
+                                                   bool(data.get("elsewhere"))))
             return
         event = WorldEvent(t=float(data["t"]), kind=kind, tile=int(data.get("tile", 0)),
                            robot=str(data.get("robot", "")), reason=str(data.get("reason", "")),

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from tiling_assembly.structure import Structure
 from tiling_sim.network_plan import NetworkSettings
+from tiling_sim.sim_settings import VI_ROBOT
 from tiling_sim.trial_record import TrialRecord
 
 
@@ -34,12 +35,18 @@ class ExperimentConfig:
     robots_find_missing: bool = True  # False: only inspection finds missing tiles (the paper)
     wall_limit: float = 0.0  # s per trial; 0: derived from the structure
     quiet: bool = False
-    inspection: bool = True  # run the VI robot's nodes (inspection and exploration)
+    inspection: bool = True  # run the VI robots' nodes (inspection and exploration)
+    vi_robots: int = 1  # scanning robots
     network: NetworkSettings = field(default_factory=NetworkSettings)  # one host, or a host per computer
 
     @property
     def robot_names(self) -> list[str]:
         return [f"robot{k + 1}" for k in range(self.robots)]
+
+    @property
+    def vi_robot_names(self) -> list[str]:
+        """/vi for one VI robot (as always), /vi1, /vi2, ... for several."""
+        return [VI_ROBOT] if self.vi_robots == 1 else [f"{VI_ROBOT}{k + 1}" for k in range(self.vi_robots)]
 
 
 

@@ -2,7 +2,7 @@
 
 With `--hosts netns` every computer of the team is a host of its own (`virtual_hosts`): the base
 station (planner, auction node), each assembly robot (its assembly_node and the body that serves its
-place_tile action), the scanning robot (vi_node, vi_explorer and its body with the Kinect), and the
+place_tile action), each scanning robot (vi_node, vi_explorer and its body with the Kinect), and the
 simulated world. The robots' links are shaped like a busy WiFi (loss, rate, outages); the base
 station and the world are wired: the paper's robots talked over 802.11b, the world is no computer
 at all, and the runner's observer watches from a wired host too.
@@ -16,7 +16,10 @@ Outages are given in simulated time, as everything else in a trial.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+
+from tiling_sim.sim_settings import VI_ROBOT
 
 DEFAULT_NETNS_TIME_FACTOR = 5.0
 WIRED_HOSTS = ("base", "world", "observer")
@@ -60,12 +63,12 @@ class NetworkSettings:
     def separate_hosts(self) -> bool:
         return self.hosts == "netns"
 
-    def check(self, robots: list[str]) -> None:
+    def check(self, robots: list[str], vi_robots: Sequence[str] = (VI_ROBOT,)) -> None:
         """One line about the first option that does not fit the team."""
         shaped = self.loss_percent or self.rate_mbit is not None or self.delay_ms or self.outages
         if shaped and not self.separate_hosts:
             raise NetworkPlanError("--link-loss, --link-rate, --link-delay and --link-outage need --hosts netns")
-        known = [*robots, "vi"]
+        known = [*robots, *vi_robots]
         for outage in self.outages:
             if outage.host not in known:
                 raise NetworkPlanError(f"--link-outage {outage.host}: no such robot (robots: {', '.join(known)})")
@@ -78,14 +81,18 @@ class NetworkSettings:
         }
 
 
-def host_of(process: str, robots: list[str]) -> str:
-    """The host a process of the experiment runs on (its name as the runner starts it)."""
+def host_of(process: str, robots: list[str], vi_robots: Sequence[str] = (VI_ROBOT,)) -> str:
+    """The host a process of the experiment runs on (its name as the runner starts it: vi_node,
+    vi_explorer, sim_vi for the one VI robot; viK_vi_node, viK_vi_explorer, viK_body for several)."""
     if process in ("planner_node", "auction_node"):
         return "base"
     if process == "sim_world":
         return "world"
     if process in ("vi_node", "vi_explorer", "sim_vi"):
-        return "vi"
+        return VI_ROBOT
+    vi = next((name for name in vi_robots if process.startswith(f"{name}_")), None)
+    if vi is not None:
+        return vi
     robot = process.removesuffix("_body")
     if robot in robots:
         return robot

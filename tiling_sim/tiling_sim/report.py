@@ -65,7 +65,8 @@ def _table(headers: list[str], rows: list[list[str]]) -> list[str]:
 def header(config: ExperimentConfig, structure: Structure) -> str:
     return (
         f"Experiment: {structure.name} ({len(structure)} tiles, {len(structure.tile_types)} types), "
-        f"{config.robots} assembly robots + 1 VI robot, {config.trials} trials with {config.removals} "
+        f"{config.robots} assembly robots + {config.vi_robots} VI robot{'s' if config.vi_robots > 1 else ''}, "
+        f"{config.trials} trials with {config.removals} "
         f"tiles removed in all, seed {config.seed}, simulated time at {config.real_time_factor:g}x"
     )
 
@@ -165,6 +166,7 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
             f"Makespan with faults: median {statistics.median(faulty):.0f} s, "
             f"range {min(faulty):.0f}-{max(faulty):.0f} s over {len(faulty)} trials"
         )
+    lines += room_wait_lines(result)
     verdicts = [v for r in result.records for v in r.verdicts]
     if verdicts:
         failed = sum(1 for v in verdicts if v.problem)
@@ -231,6 +233,25 @@ def chosen_trial(result: ExperimentResult) -> TrialRecord | None:
     """The trial shown in Table 2 and the pictures: the first with a detection, else the first."""
     detected = [r for r in result.fault_trials() if r.announcements]
     return detected[0] if detected else (result.records[0] if result.records else None)
+
+
+def room_wait_lines(result: ExperimentResult) -> list[str]:
+    """What robots standing where another needed to be cost (`standing_room`), per trial."""
+    lines = []
+    for record in result.records:
+        waits = record.room_waits
+        if not waits:
+            continue
+        makespan = record.makespan()
+        share = f" ({100.0 * sum(w.seconds for w in waits) / makespan:.1f}% of the makespan, summed over robots)" \
+            if makespan else ""
+        forced = sum(1 for w in waits if w.forced)
+        waited = [w for w in waits if w.seconds > 0]
+        lines.append(f"Trial {record.trial}: another robot stood where a robot needed to be {len(waits)} times: "
+                     f"it stopped elsewhere {sum(1 for w in waits if w.elsewhere)} times, waited {len(waited)} times, "
+                     f"{sum(w.seconds for w in waits):.0f} s in all{share}"
+                     + (f"; {forced} went in anyway after waiting their patience" if forced else ""))
+    return lines
 
 
 def summary_text(result: ExperimentResult) -> str:
@@ -381,6 +402,8 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "duplicate_placements": duplicate_placements(record), "lost_placements": lost_placements(record),
             "link_changes": [{"t": round(c.t, 2), "robot": c.host, "up": c.up} for c in record.link_changes],
             "scans_judged": len(record.verdicts), "scans_without_states": sum(1 for v in record.verdicts if v.problem),
+            "scans_judged_by": dict(Counter(v.robot for v in record.verdicts)),
+            "room_waits": [w.as_dict() for w in record.room_waits],
             "scans_not_in_view": sum(1 for v in record.verdicts if "S_a not in view" in v.problem),
             "scan_verdict_delays": [round(v.wall_delay, 4) for v in record.verdicts],
             "scan_problems": [v.problem for v in record.verdicts if v.problem],
@@ -402,6 +425,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
         })
     first = first_plan(result)
     return {"structure": result.structure.name, "robots": result.config.robot_names,
+            "vi_robots": result.config.vi_robot_names if result.config.inspection else [],
             "planned_makespan": None if first is None else first.makespan,
             "lower_bound": None if first is None else first.lower_bound,
             "network": {**result.config.network.as_dict(), "real_time_factor": result.config.real_time_factor,

@@ -8,7 +8,9 @@ the body tells the world where its base will stand when the phase ends (`/sim/mo
 the world before it sets out, when the picking ends (did the tile slip?) and when the placing ends
 (is the tile now in place, or which support is absent?) over `/sim/place`. It serves `remove_tile`
 as well (a repair: drive to the tile, lift it off, carry it to the drop-off), asking the world when
-it sets out and when the lifting ends (is the tile there, with nothing resting on it?).
+it sets out and when the lifting ends (is the tile there, with nothing resting on it?). Before each
+drive to a stop it asks the world for room there (`standing_room`): where another robot stands, it
+stops beside the cache or round the tile, or waits until the other has gone.
 
 One goal at a time, of either action (the robot has one arm): a second is refused. A goal the world
 does not answer fails (FAILED_HARDWARE).
@@ -17,6 +19,7 @@ does not answer fails (FAILED_HARDWARE).
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from typing import Any
 
 from geometry_msgs.msg import PoseStamped
@@ -36,8 +39,9 @@ from tiling_ros.qos import SIM_MOTION
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_seconds, stamp_to_seconds
 from tiling_sim import sim_interface as sim
-from tiling_sim.robot_motion import Phase, Point2, placement_phases, removal_phases
+from tiling_sim.robot_motion import Phase, Point2, Polygon, placement_phases, removal_phases
 from tiling_sim.sim_settings import RobotBodySettings
+from tiling_sim.standing_room import alternative_spot
 
 Result = PlaceTile.Result
 Removal = RemoveTile.Result
@@ -121,10 +125,15 @@ class SimRobot(Node):
             return _finish(handle.succeed, Result.ALREADY_PRESENT, answer.reason), start, at
         if answer.outcome != SimPlace.Response.OK:
             return _finish(handle.abort, Result.FAILED_PRECONDITION, answer.reason), start, at
-        tile_xy = (goal.pose.pose.position.x, goal.pose.pose.position.y)
-        phases = placement_phases(self.motion, self.position, (goal.cache.x, goal.cache.y), tile_xy,
-                                  self.footprints)
-        for phase in phases:
+        tile_xy, cache = (goal.pose.pose.position.x, goal.pose.pose.position.y), (goal.cache.x, goal.cache.y)
+        cache_stop, at = await self.make_room(cache, cache, self.position, at)
+        phases = placement_phases(self.motion, self.position, cache, tile_xy, self.footprints, cache_stop)
+        for k in range(len(phases)):
+            if phases[k].phase == PlaceTile.Feedback.DRIVING_TO_STRUCTURE:
+                target, at = await self.make_room(phases[k].end, tile_xy, cache, at, self.footprints)
+                phases = placement_phases(self.motion, self.position, cache, tile_xy, self.footprints, cache_stop,
+                                          target)
+            phase = phases[k]
             at = await self.run_phase(handle, PlaceTile.Feedback, phase, at)
             if handle.is_cancel_requested:
                 return _finish(handle.canceled, Result.CANCELED, "canceled"), start, at
@@ -156,10 +165,16 @@ class SimRobot(Node):
         refused = self.removal_refused(handle, answer)
         if refused is not None:
             return refused, start, at
-        tile_xy = (goal.pose.pose.position.x, goal.pose.pose.position.y)
-        phases = removal_phases(self.motion, self.position, tile_xy, (goal.drop_off.x, goal.drop_off.y),
-                                self.footprints)
-        for phase in phases:
+        tile_xy, drop_off = (goal.pose.pose.position.x, goal.pose.pose.position.y), (goal.drop_off.x, goal.drop_off.y)
+        phases = removal_phases(self.motion, self.position, tile_xy, drop_off, self.footprints)
+        target, at = await self.make_room(phases[0].end, tile_xy, drop_off, at, self.footprints)
+        phases = removal_phases(self.motion, self.position, tile_xy, drop_off, self.footprints, target)
+        for k in range(len(phases)):
+            if phases[k].phase == RemoveTile.Feedback.DRIVING_TO_DROP_OFF:
+                drop_stop, at = await self.make_room(drop_off, drop_off, tile_xy, at)
+                phases = removal_phases(self.motion, self.position, tile_xy, drop_off, self.footprints, target,
+                                        drop_stop)
+            phase = phases[k]
             at = await self.run_phase(handle, RemoveTile.Feedback, phase, at)
             if handle.is_cancel_requested:
                 return _finish(handle.canceled, Removal.CANCELED, "canceled", Removal), start, at
@@ -183,6 +198,30 @@ class SimRobot(Node):
             result.resting_on_it = list(answer.resting_on_it)
             return result
         return _finish(handle.abort, Removal.FAILED_NOT_FOUND, answer.reason, Removal)
+
+    async def make_room(
+        self, preferred: Point2, around: Point2, towards: Point2, at: float, obstacles: Sequence[Polygon] = (),
+    ) -> tuple[Point2, float]:
+        """Where to drive next, and the time (s) the drive may start: `preferred`, else another stop
+        within reach round `around` (a cache, a tile), else `preferred` once the robot standing there
+        has gone (asking every `room_wait_step` s, the world's clock held meanwhile), or after
+        `room_patience` s anyway (`standing_room`)."""
+        s = self.settings
+        waited = 0.0
+        while True:
+            answer = await self.ask(SimPlace.Request.GOING_TO, x=preferred[0], y=preferred[1],
+                                    insist=waited >= s.room_patience)
+            if answer.outcome == SimPlace.Response.OK:
+                return preferred, at
+            others = [(p.x, p.y) for p in answer.robots]
+            spot = alternative_spot(self.motion, around, towards, preferred, others, s.robot_clearance, obstacles)
+            if spot is not None:
+                answer = await self.ask(SimPlace.Request.GOING_TO, x=spot[0], y=spot[1])
+                if answer.outcome == SimPlace.Response.OK:
+                    return spot, at
+            self.declare(at + s.room_wait_step, busy=True)
+            at = await self.time.until(at + s.room_wait_step)
+            waited += s.room_wait_step
 
     async def run_phase(self, handle: Any, feedback_type: Any, phase: Phase, at: float) -> float:
         """Announce `phase` to the goal's client and the world, and sleep through it; the time it ends."""
@@ -214,9 +253,9 @@ class SimRobot(Node):
         x, y = position or self.position
         self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=x, y=y, yaw=0.0, busy=busy))
 
-    async def ask(self, step: int, tile_id: int) -> SimPlace.Response:
+    async def ask(self, step: int, tile_id: int = 0, **where: Any) -> SimPlace.Response:
         """The world's answer to one step of a placement (FAILED_HARDWARE's reason when none comes)."""
-        answer = await self.world.call(SimPlace.Request(robot=self.name, tile_id=tile_id, step=step))
+        answer = await self.world.call(SimPlace.Request(robot=self.name, tile_id=tile_id, step=step, **where))
         if answer is None:
             raise WorldSilentError(f"the simulated world did not answer on {sim.PLACE} within "
                               f"{sim.WORLD_PATIENCE:g} s")

@@ -104,34 +104,40 @@ def stop_at(origin: NDArray[np.float64], heading: float, distance: float) -> Poi
 
 
 def placement_phases(
-    model: MotionModel, start: Point2, cache: Point2, tile_xy: Point2, obstacles: Sequence[Polygon] = ()
+    model: MotionModel, start: Point2, cache: Point2, tile_xy: Point2, obstacles: Sequence[Polygon] = (),
+    cache_stop: Point2 | None = None, target: Point2 | None = None,
 ) -> list[Phase]:
-    """The timed phases of one placement (phase numbers of PlaceTile.Feedback); the base stops clear
-    of `obstacles` (see `approach_point`)."""
-    target = approach_point(model, tile_xy, cache, obstacles)
+    """The timed phases of one placement (phase numbers of PlaceTile.Feedback); the base stops at
+    the cache (or at `cache_stop` beside it) and beside the tile clear of `obstacles` (see
+    `approach_point`; or at `target`)."""
+    at_cache = cache_stop or cache
+    target = target or approach_point(model, tile_xy, cache, obstacles)
     return [
-        Phase(1, _drive_time(model, start, cache), cache),  # DRIVING_TO_CACHE
-        Phase(2, model.locate_time, cache),  # LOCATING_TILE
-        Phase(3, model.pick_time, cache),  # PICKING
-        Phase(4, _drive_time(model, cache, target), target),  # DRIVING_TO_STRUCTURE
+        Phase(1, _drive_time(model, start, at_cache), at_cache),  # DRIVING_TO_CACHE
+        Phase(2, model.locate_time, at_cache),  # LOCATING_TILE
+        Phase(3, model.pick_time, at_cache),  # PICKING
+        Phase(4, _drive_time(model, at_cache, target), target),  # DRIVING_TO_STRUCTURE
         Phase(5, model.place_time, target),  # PLACING
         Phase(6, model.retreat_time, target),  # RETREATING
     ]
 
 
 def removal_phases(
-    model: MotionModel, start: Point2, tile_xy: Point2, drop_off: Point2, obstacles: Sequence[Polygon] = ()
+    model: MotionModel, start: Point2, tile_xy: Point2, drop_off: Point2, obstacles: Sequence[Polygon] = (),
+    target: Point2 | None = None, drop_stop: Point2 | None = None,
 ) -> list[Phase]:
     """The timed phases of taking a tile off the structure (phase numbers of RemoveTile.Feedback):
-    a placement run backwards, from the structure to the drop-off, with the same arm times."""
-    target = approach_point(model, tile_xy, drop_off, obstacles)
+    a placement run backwards, from the structure (or `target`) to the drop-off (or `drop_stop`
+    beside it), with the same arm times."""
+    target = target or approach_point(model, tile_xy, drop_off, obstacles)
+    at_drop = drop_stop or drop_off
     return [
         Phase(1, _drive_time(model, start, target), target),  # DRIVING_TO_STRUCTURE
         Phase(2, model.locate_time, target),  # LOCATING_TILE
         Phase(3, model.pick_time, target),  # LIFTING
-        Phase(4, _drive_time(model, target, drop_off), drop_off),  # DRIVING_TO_DROP_OFF
-        Phase(5, model.place_time, drop_off),  # RELEASING
-        Phase(6, model.retreat_time, drop_off),  # RETREATING
+        Phase(4, _drive_time(model, target, at_drop), at_drop),  # DRIVING_TO_DROP_OFF
+        Phase(5, model.place_time, at_drop),  # RELEASING
+        Phase(6, model.retreat_time, at_drop),  # RETREATING
     ]
 
 

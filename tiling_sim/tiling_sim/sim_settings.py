@@ -19,7 +19,9 @@ from tiling_assembly.structure import Structure
 from tiling_ros.parameters import setting
 from tiling_sim.robot_motion import MotionModel, Point2, start_positions
 
-VI_ROBOT = "vi"  # the VI robot's name: its namespace and the prefix of its topics
+Pose2 = tuple[float, float, float]  # x, y, yaw (m, rad) in map
+
+VI_ROBOT = "vi"  # the VI robot's name when there is one: its namespace and the prefix of its topics
 
 
 @dataclass(frozen=True)
@@ -32,10 +34,18 @@ class SimLayout:
     robot_start_xy: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.0], "x1, y1, x2, y2, ... start positions of the robots in map (m); fewer than 2 numbers: "
         "spread on a circle around the structure.")
+    vi_robot_names: list[str] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [VI_ROBOT], "Simulated VI (scanning) robots (their namespaces).")
     vi_start_pose: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
-        [0.9, 0.0, math.pi], "x, y, yaw of the VI robot's base at the start.")
+        [0.9, 0.0, math.pi], "x, y, yaw of each VI robot's base at the start, 3 numbers per robot; 3 numbers "
+        "for several robots: the first stands there, the others as far round the structure's centre.")
     seed: int = setting(1, "Seed of every random choice of the testbed (faults, localization errors, "
                             "Kinect noise).")
+    robot_size: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.33, 0.33, 0.35], "Box standing for a robot: x, y, z size (m).")
+    robot_clearance: float = setting(
+        0.05, "m two robots' bases keep apart: a robot waits, or stops elsewhere, while another stands where "
+        "it needs to be.")
 
     @classmethod
     def names(cls) -> list[str]:
@@ -65,8 +75,12 @@ class SimLayout:
             raise _bad(source, "parameter 'structure_file' is required")
         if not [r for r in self.robot_names if r]:
             raise _bad(source, "parameter 'robot_names' is empty: the testbed needs an assembly robot")
-        if len(self.vi_start_pose) != 3:
-            raise _bad(source, "parameter 'vi_start_pose' needs x, y, yaw")
+        if not self.vi_team or len(set(self.vi_team)) != len(self.vi_team):
+            raise _bad(source, "parameter 'vi_robot_names' needs one or more different names")
+        if len(self.vi_start_pose) not in (3, 3 * len(self.vi_team)):
+            raise _bad(source, "parameter 'vi_start_pose' needs x, y, yaw (for every VI robot, or for the first)")
+        if len(self.robot_size) != 3 or min(self.robot_size) <= 0 or self.robot_clearance < 0:
+            raise _bad(source, "parameter 'robot_size' needs 3 positive sizes, 'robot_clearance' must not be negative")
         if len(self.robot_start_xy) >= 2 and len(self.robot_start_xy) != 2 * len(self.team):
             raise _bad(source, f"parameter 'robot_start_xy' needs 2 numbers per robot "
                              f"({len(self.team)}), got {len(self.robot_start_xy)}")
@@ -84,9 +98,23 @@ class SimLayout:
         return {r: (starts[2 * k], starts[2 * k + 1]) for k, r in enumerate(self.team)}
 
     @property
-    def vi_start(self) -> tuple[float, float, float]:
-        x, y, yaw = self.vi_start_pose
-        return (x, y, yaw)
+    def vi_team(self) -> list[str]:
+        return [r for r in self.vi_robot_names if r]
+
+    def vi_starts(self, structure: Structure) -> dict[str, Pose2]:
+        """Where each VI robot stands at the start: as given, or the first as given and the others
+        turned round the structure's centre by equal steps (they face the same way on it)."""
+        given = list(self.vi_start_pose)
+        if len(given) == 3 * len(self.vi_team):
+            return {r: (given[3 * k], given[3 * k + 1], given[3 * k + 2]) for k, r in enumerate(self.vi_team)}
+        (low, high), (x, y, yaw) = structure.bounds, given
+        cx, cy = (low[0] + high[0]) / 2, (low[1] + high[1]) / 2
+        starts = {}
+        for k, robot in enumerate(self.vi_team):
+            turn = 2 * math.pi * k / len(self.vi_team)
+            c, s = math.cos(turn), math.sin(turn)
+            starts[robot] = (cx + c * (x - cx) - s * (y - cy), cy + s * (x - cx) + c * (y - cy), yaw + turn)
+        return starts
 
 
 @dataclass(frozen=True)
@@ -140,15 +168,11 @@ class BodySettings(SimLayout):
 
     drive_speed: float = setting(0.15, "Base speed, m/s.")
     turn_speed: float = setting(1.0, "Base turning speed, rad/s.")
-    robot_size: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
-        [0.33, 0.33, 0.35], "Box standing for an assembly robot: x, y, z size (m).")
 
     def check(self, source: str) -> None:
         super().check(source)
         if self.drive_speed <= 0 or self.turn_speed <= 0:
             raise _bad(source, "parameters 'drive_speed' and 'turn_speed' must be positive")
-        if len(self.robot_size) != 3 or min(self.robot_size) <= 0:
-            raise _bad(source, "parameter 'robot_size' needs 3 positive sizes")
 
 
 @dataclass(frozen=True)
@@ -166,10 +190,17 @@ class RobotBodySettings(BodySettings):
     decision_window: float = setting(
         1.0, "s of wall time the world's clock waits after a placement for the robot's next goal: the team's "
         "decision costs no simulated time, however busy the host (see tiling_sim/body_hold.py).")
+    room_wait_step: float = setting(
+        1.0, "s of simulated time a robot waits before asking again for a spot another robot stands at.")
+    room_patience: float = setting(
+        60.0, "s of simulated time a robot waits for a spot before it goes anyway (two robots waiting for "
+        "each other's spot).")
 
     def check(self, source: str) -> None:
         super().check(source)
         durations = (self.locate_time, self.pick_time, self.place_time, self.retreat_time, self.decision_window)
+        if self.room_wait_step <= 0 or self.room_patience < 0:
+            raise _bad(source, "parameter 'room_wait_step' must be positive, 'room_patience' not negative")
         if min(durations) < 0 or self.approach_distance < 0 or self.base_clearance < 0:
             raise _bad(source, "phase durations, 'decision_window', 'approach_distance' and "
                              "'base_clearance' must not be negative")
@@ -200,7 +231,7 @@ class ViBodySettings(BodySettings):
         [580.0, 580.0, 319.5, 239.5], "Kinect depth camera fx, fy, cx, cy (px).")
     intrinsics_size: list[int] = setting(  # noqa: RUF009 - a field() with a default_factory
         [640, 480], "Kinect depth image width, height (px).")
-    robots_in_view: bool = setting(True, "The assembly robots appear in the Kinect's view (as boxes).")
+    robots_in_view: bool = setting(True, "The other robots (assembly and VI) appear in the Kinect's view (as boxes).")
 
     def check(self, source: str) -> None:
         super().check(source)

@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 
 from tiling_sim.network_plan import WIRED_HOSTS, NetworkSettings, host_of, links_out
+from tiling_sim.sim_settings import VI_ROBOT
 from tiling_sim.virtual_hosts import LinkShape, VirtualHosts
 
 
@@ -30,22 +31,24 @@ class LinkChange:
 class TeamNetwork:
     settings: NetworkSettings
     robots: list[str]
+    vi_robots: Sequence[str] = (VI_ROBOT,)
     hosts: VirtualHosts | None = None
     dds_profile: str = ""  # Fast DDS XML profile every process on a host loads
     out: set[str] = field(default_factory=set)
 
     @classmethod
-    def build(cls, settings: NetworkSettings, robots: list[str], run_id: str, dds_profile: str = "") -> TeamNetwork:
+    def build(cls, settings: NetworkSettings, robots: list[str], run_id: str, dds_profile: str = "",
+              vi_robots: Sequence[str] = (VI_ROBOT,)) -> TeamNetwork:
         """The network; with separate hosts, the runner's own thread moves onto the observer host
         (call before rclpy.init and before starting threads). Raises VirtualHostsError (one line)."""
-        network = cls(settings, robots, dds_profile=dds_profile)
+        network = cls(settings, robots, tuple(vi_robots), dds_profile=dds_profile)
         if not settings.separate_hosts:
             return network
         network.hosts = VirtualHosts(run_id)
         shaped = cls.link_shape(settings)
         for name in WIRED_HOSTS:
             network.hosts.add_host(name)
-        for name in [*robots, "vi"]:
+        for name in [*robots, *vi_robots]:
             network.hosts.add_host(name, shaped)
         network.hosts.enter("observer")
         os.environ.update(network.environment("observer", os.environ))
@@ -59,18 +62,18 @@ class TeamNetwork:
     def describe(self) -> str:
         if self.hosts is None:
             return "Hosts: one (every process on this machine)"
-        return (f"Hosts: base, world, {', '.join(self.robots)}, vi (network namespaces on one bridge); "
+        return (f"Hosts: base, world, {', '.join([*self.robots, *self.vi_robots])} (network namespaces on one bridge); "
                 f"robots' links: {self.link_shape(self.settings)}")
 
     def command(self, process: str, argv: Sequence[str]) -> list[str]:
         if self.hosts is None:
             return list(argv)
-        return self.hosts.command(host_of(process, self.robots), argv)
+        return self.hosts.command(host_of(process, self.robots, self.vi_robots), argv)
 
     def environment(self, process: str, base: Mapping[str, str]) -> dict[str, str]:
         if self.hosts is None:
             return dict(base)
-        host = process if process in WIRED_HOSTS else host_of(process, self.robots)
+        host = process if process in WIRED_HOSTS else host_of(process, self.robots, self.vi_robots)
         environment = self.hosts.host_environment(host, base)
         if self.dds_profile:
             environment["FASTRTPS_DEFAULT_PROFILES_FILE"] = self.dds_profile
@@ -99,7 +102,7 @@ class TeamNetwork:
         """What went over each robot's link so far (frames and bytes, dropped by loss or outage)."""
         if self.hosts is None:
             return {}
-        return {name: asdict(self.hosts.counters(name)) for name in [*self.robots, "vi"]}
+        return {name: asdict(self.hosts.counters(name)) for name in [*self.robots, *self.vi_robots]}
 
     def close(self) -> None:
         if self.hosts is not None:

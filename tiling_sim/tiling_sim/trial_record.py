@@ -55,6 +55,24 @@ class Verdict:
     t: float  # s of simulated time of the scan
     wall_delay: float  # s of wall time from the scan's publication to its verdict on /tile_states
     problem: str = ""  # empty: classified
+    robot: str = ""  # the VI robot that took it
+
+
+@dataclass(frozen=True)
+class RoomWait:
+    """An assembly robot found another robot where it needed to stand (`standing_room`): it waited for
+    it to leave, or stopped elsewhere."""
+
+    robot: str
+    since: float  # s of simulated time
+    seconds: float
+    in_the_way: tuple[str, ...]
+    forced: bool  # it went there after all, the other robot still in the way
+    elsewhere: bool = False  # it stopped at another spot (beside a cache, round a tile)
+
+    def as_dict(self) -> dict[str, object]:
+        return {"robot": self.robot, "since": self.since, "seconds": self.seconds,
+                "in_the_way": list(self.in_the_way), "forced": self.forced, "elsewhere": self.elsewhere}
 
 
 @dataclass(frozen=True)
@@ -104,6 +122,7 @@ class TrialRecord:
     scans: list[Scan] = field(default_factory=list)
     verdicts: list[Verdict] = field(default_factory=list)
     unjudged_scans: list[float] = field(default_factory=list)  # s of simulated time of scans never answered
+    room_waits: list[RoomWait] = field(default_factory=list)
     announcements: list[Announcement] = field(default_factory=list)
     awards: list[AwardRecord] = field(default_factory=list)
     award_latencies: list[float] = field(default_factory=list)  # s of wall time

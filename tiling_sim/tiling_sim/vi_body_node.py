@@ -1,4 +1,4 @@
-"""sim_vi: the simulated VI robot's body, on board the robot (run in its namespace, /vi).
+"""sim_vi: a simulated VI robot's body, on board the robot (run in its namespace: /vi, or /vi1, /vi2, ...).
 
 Serves the base's `navigate_to` (turn, drive, turn at the speeds of `config/tiling_sim.yaml`,
 sleeping on simulated time) and is its Kinect: while the base stands, it takes a frame when one is
@@ -7,7 +7,9 @@ for a snapshot (`/sim/snapshot`: tiles in place, where the assembly robots truly
 renders it from its own true camera pose on a thread of its own (`kinect`) and publishes it on
 `camera/depth/points` here, on the robot: a 3.7 MB cloud never crosses the robots' network. It
 tells the world how each frame fares (`/sim/scan_progress`), which paces the clock for the frame
-the explorer stopped for after an arrival (stopped while it renders, wall pace while judged).
+the explorer stopped for after an arrival (stopped while it renders, wall pace while judged). Of the
+verdicts on `/tile_states` it takes its own robot's (`robot_name`): with several VI robots, another's
+verdict says nothing about this camera's frame.
 """
 
 from __future__ import annotations
@@ -67,7 +69,10 @@ class SimVi(Node):
             raise ValueError("sim_vi runs in the VI robot's namespace (-r __ns:=/vi)")
         self.structure = load_structure(s.structure_file)
         self.motion = s.motion()
-        self.pose: Pose2 = s.vi_start
+        starts = s.vi_starts(self.structure)
+        if self.name not in starts:
+            raise ValueError(f"sim_vi in /{self.name}: not one of vi_robot_names ({', '.join(s.vi_team)})")
+        self.pose: Pose2 = starts[self.name]
         fx, fy, cx, cy = s.intrinsics
         width, height = s.intrinsics_size
         self.kinect = KinectSimulator(PinholeIntrinsics(fx, fy, cx, cy, width, height), seed=s.seed)
@@ -133,7 +138,7 @@ class SimVi(Node):
         if overdue is not None:
             self.give_up(overdue)
         if frame is not None:
-            request = SimSnapshot.Request(hold_clock=frame.held)
+            request = SimSnapshot.Request(hold_clock=frame.held, robot=self.name)
             self.world.call_async(request).add_done_callback(lambda future: self.on_snapshot(frame, future))
 
     def on_snapshot(self, frame: Frame, future: Any) -> None:
@@ -178,6 +183,8 @@ class SimVi(Node):
 
     def on_verdict(self, msg: TileStateArray) -> None:
         """vi_node has judged a scan (states or the reason it has none): the camera may take the next."""
+        if msg.robot_name and msg.robot_name != self.name:
+            return
         with self.lock:
             judged = self.cycle.judged(stamp_to_nanoseconds(msg.header.stamp), time.monotonic())
         if judged is not None:
@@ -195,7 +202,8 @@ class SimVi(Node):
 
     def progress(self, stage: int, frame: Frame, wall_delay: float = 0.0, problem: str = "") -> None:
         """Tell the world how `frame` fares (a frame without a snapshot releases any hold)."""
-        self.progress_pub.publish(SimScanProgress(stage=stage, scan_stamp=stamp_from_seconds(frame.stamp_ns * 1e-9),
+        self.progress_pub.publish(SimScanProgress(stage=stage, robot=self.name,
+                                                  scan_stamp=stamp_from_seconds(frame.stamp_ns * 1e-9),
                                                   wall_delay=wall_delay, problem=problem))
 
 

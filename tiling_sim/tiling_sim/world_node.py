@@ -2,7 +2,7 @@
 
 What no robot carries on board, in one process (the world host under `--hosts netns`): the
 simulated `/clock` (running `real_time_factor` times faster than the wall clock, paced by the VI
-robot's scans, see `sim_clock` and `scan_hold`, and held at the end of an assembly robot's phase until
+robots' scans, see `sim_clock` and `scan_hold`, and held at the end of an assembly robot's phase until
 its body goes on, see `body_hold`), the physical structure S_p, the faults (tiles
 removed at random times, tiles slipping from a gripper, landing shifted, turned or of the wrong
 type, and the repairs that take them off again), the overhead localization of every robot
@@ -10,7 +10,7 @@ type, and the repairs that take them off again), the overhead localization of ev
 `/sim/events` (JSON lines for the experiment runner; `/sim/start` starts the clock).
 
 The robots' bodies are processes of their own, on their robots' hosts: `sim_robot` serves an
-assembly robot's `place_tile`, `sim_vi` the VI robot's `navigate_to` and its Kinect. They meet the
+assembly robot's `place_tile`, `sim_vi` a VI robot's `navigate_to` and its Kinect. They meet the
 world through the small simulator-internal interface of `sim_interface` (`/sim/place`,
 `/sim/snapshot`, `/sim/motion`, `/sim/scan_progress`). All callbacks run on one thread, so a
 snapshot, a placement step and a clock tick never interleave: a scan carries the time of the world
@@ -48,7 +48,8 @@ from tiling_sim.faults import FaultInjector, choose_wrong_tiles
 from tiling_sim.overhead_cameras import OverheadCameras, Pose2
 from tiling_sim.scan_hold import ScanHold
 from tiling_sim.sim_clock import SimClock
-from tiling_sim.sim_settings import VI_ROBOT, WorldSettings
+from tiling_sim.sim_settings import WorldSettings
+from tiling_sim.standing_room import StandingRoom
 from tiling_sim.whereabouts import Whereabouts
 from tiling_sim.world import PhysicalWorld
 from tiling_sim.world_referee import StepAnswer, WorldReferee
@@ -76,9 +77,12 @@ class SimWorld(Node):
         self.referee = WorldReferee(PhysicalWorld(structure), faults)
         self.robots = s.team
         starts: dict[str, Pose2] = {r: (x, y, 0.0) for r, (x, y) in s.robot_starts(structure).items()}
-        self.whereabouts = Whereabouts({**starts, VI_ROBOT: s.vi_start})
+        self.vi_robots = s.vi_team
+        self.whereabouts = Whereabouts({**starts, **s.vi_starts(structure)})
+        self.room = StandingRoom(((s.robot_size[0] + s.robot_clearance) / 2, (s.robot_size[1] + s.robot_clearance) / 2),
+                                 {robot: pose[:2] for robot, pose in self.whereabouts.poses.items()})
         self.cameras = OverheadCameras(s.seed, s.overhead_position_error, math.radians(s.overhead_yaw_error_deg),
-                                       [*self.robots, VI_ROBOT])
+                                       [*self.robots, *self.vi_robots])
         self.clock = SimClock(s.real_time_factor)
         self.hold = ScanHold(s.scan_hold_limit)
         self.body_hold = BodyHold(s.body_hold_limit)
@@ -99,7 +103,7 @@ class SimWorld(Node):
                    removal_times=[round(t, 1) for t in faults.removal_times],
                    misplaced_tiles=sorted(faults.misplaced_tiles), wrong_type_tiles=sorted(faults.wrong_type_tiles))
         self.get_logger().info(
-            f"simulating {structure.name} with {', '.join(self.robots)} and the VI robot at "
+            f"simulating {structure.name} with {', '.join(self.robots)} and {', '.join(self.vi_robots)} at "
             f"{s.real_time_factor:g}x real time; {len(faults.removal_times)} removals, {s.misplacements} "
             f"misplacements and {s.wrong_tiles} wrong tiles scheduled"
         )
@@ -119,8 +123,8 @@ class SimWorld(Node):
         self.body_hold.starting(self.robots, self.clock.now, self.settings.start_window)
 
     def tick(self) -> None:
-        if self.hold.lapsed(time.monotonic()):
-            self.get_logger().warn(f"the VI robot's scan held the clock for over {self.settings.scan_hold_limit:g} s "
+        for robot in self.hold.lapsed(time.monotonic()):
+            self.get_logger().warn(f"{robot}'s scan held the clock for over {self.settings.scan_hold_limit:g} s "
                                    "of wall time: running on without it")
         lapsed = self.body_hold.lapsed(self.clock.now, time.monotonic()) if self.clock.running else []
         for robot in lapsed:
@@ -152,6 +156,8 @@ class SimWorld(Node):
                                    throttle_duration_sec=10.0)
             return
         self.whereabouts.expect(msg.robot, msg.arrive_at, (msg.x, msg.y, msg.yaw))
+        if msg.robot in self.vi_robots:
+            self.room.moved(msg.robot, (msg.x, msg.y))
         if msg.robot in self.robots:
             self.now()  # the time up to this news ran under the old ceiling
             if msg.busy:
@@ -166,6 +172,8 @@ class SimWorld(Node):
         steps = {SimPlace.Request.STARTING: self.referee.starting, SimPlace.Request.PICKED: self.referee.picked,
                  SimPlace.Request.PLACING: self.referee.placing, SimPlace.Request.REMOVING: self.referee.removing,
                  SimPlace.Request.LIFTED: self.referee.lifted}
+        if request.step == SimPlace.Request.GOING_TO and request.robot in self.robots:
+            return self.going_to(request, response, now)
         step = steps.get(request.step)
         if step is None or request.robot not in self.robots:
             response.outcome = SimPlace.Response.UNKNOWN_TILE
@@ -182,12 +190,27 @@ class SimWorld(Node):
         response.resting_on_it = answer.resting_on_it
         return response
 
+    def going_to(self, request: SimPlace.Request, response: SimPlace.Response, now: float) -> SimPlace.Response:
+        """May the robot's base stand at (x, y)? Not where another robot stands or is going (`standing_room`)."""
+        in_the_way, wait = self.room.ask(request.robot, (request.x, request.y), now, request.insist)
+        if in_the_way:
+            response.outcome = SimPlace.Response.ROBOT_IN_THE_WAY
+            response.reason = f"{', '.join(in_the_way)} stands where {request.robot} would"
+            response.robots = [Point(x=x, y=y, z=0.0) for x, y in self.room.others(request.robot)]
+            return response
+        if wait is not None:
+            self.event("room_wait", robot=wait.robot, since=round(wait.since, 3), seconds=round(wait.seconds, 3),
+                       in_the_way=list(wait.in_the_way), forced=wait.forced, elsewhere=wait.elsewhere)
+        response.outcome = SimPlace.Response.OK
+        return response
+
     def on_snapshot(self, request: SimSnapshot.Request, response: SimSnapshot.Response) -> SimSnapshot.Response:
         now = self.now()
         self.arrive(now)
         stamp = stamp_from_seconds(now)
+        asking = request.robot or self.vi_robots[0]
         if request.hold_clock:
-            self.hold.hold(stamp_to_nanoseconds(stamp), time.monotonic())
+            self.hold.hold(stamp_to_nanoseconds(stamp), time.monotonic(), asking)
         response.stamp = stamp
         world = self.referee.world
         response.present_tiles = sorted(world.present)
@@ -196,24 +219,25 @@ class SimWorld(Node):
         response.misplaced_types = [t.type_name for t in lying_wrong]
         response.misplaced_poses = [pose_of(t) for t in lying_wrong]
         response.robots = [Point(x=pose[0], y=pose[1], z=0.0)
-                           for robot, pose in self.whereabouts.poses.items() if robot in self.robots]
+                           for robot, pose in self.whereabouts.poses.items() if robot != asking]
         for name in self.overhead_pubs:  # the overhead cameras see every robot at the scan's time
             self.overhead_pubs[name].publish(self.overhead_pose(name, stamp))
         return response
 
     def on_scan_progress(self, msg: SimScanProgress) -> None:
         stamp = stamp_to_nanoseconds(msg.scan_stamp)
+        robot = msg.robot or self.vi_robots[0]
         self.now()  # the pace changes from this moment on
         if msg.stage == SimScanProgress.PUBLISHED:
-            self.hold.published(stamp)
+            self.hold.published(stamp, robot)
         elif msg.stage == SimScanProgress.JUDGED:
-            self.hold.release(stamp)
-            self.event("scan_judged", wall_delay=round(msg.wall_delay, 4), problem=msg.problem)
+            self.hold.release(stamp, robot)
+            self.event("scan_judged", robot=robot, wall_delay=round(msg.wall_delay, 4), problem=msg.problem)
         elif msg.stage == SimScanProgress.UNJUDGED:
-            self.hold.release(stamp)
-            self.event("scan_unjudged", scan_t=stamp * 1e-9)
+            self.hold.release(stamp, robot)
+            self.event("scan_unjudged", robot=robot, scan_t=stamp * 1e-9)
         elif msg.stage == SimScanProgress.FAILED:
-            self.hold.release()
+            self.hold.release(robot=robot)
 
     def overhead_pose(self, name: str, stamp: Any) -> PoseStamped:
         """The overhead cameras' view of a robot: its true pose plus the current error."""

@@ -13,12 +13,20 @@ with the time since it was last seen, so that every tile is looked at again now 
 can disappear while building). Candidate viewpoints stand on rings around the structure, facing
 it; the next one is the candidate whose view (predicted by ray tracing S_a, see
 `viewpoint.rank_viewpoints`) resolves the most priority, less a small cost for driving there.
+
+Several VI robots (the paper's N_s) divide the work by claims rather than by fixed sectors of the
+ring: each explorer announces the viewpoint it drives to, and the others leave every viewpoint within
+`claim_clearance` of it alone and count the tiles that view will resolve at `shared_weight` of their
+priority. So they look from different places at different tiles, yet all of them can go where the
+building happens (a fixed split of the ring would idle the robot whose sector is finished), and a
+tile one robot called missing is still worth a look from a second robot elsewhere (the auction node
+confirms from two camera positions). A claim that is never renewed (its robot died) lapses.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,6 +75,8 @@ class Exploration:
     weights: PriorityWeights = field(default_factory=PriorityWeights)
     travel_cost: float = 0.5  # priority points per metre of driving
     failure_memory: float = 30.0  # s a viewpoint whose scans did not align is avoided
+    claim_clearance: float = 0.5  # m: a viewpoint this near one another VI robot claimed is left to it
+    shared_weight: float = 0.25  # share of its priority a tile keeps that another robot's claimed view resolves
     tiles: dict[int, TileKnowledge] = field(default_factory=dict)
     failed: dict[int, float] = field(default_factory=dict)  # candidate index -> when it failed
 
@@ -98,8 +108,16 @@ class Exploration:
                 knowledge = self.tiles[tile_id]
                 knowledge.state, knowledge.judged_at = state, now
 
-    def priority(self, now: float) -> dict[int, float]:
-        """Weight of seeing each expected tile now."""
+    def priority(self, now: float, left_to_others: Collection[int] = ()) -> dict[int, float]:
+        """Weight of seeing each expected tile now; the tiles `left_to_others` (another VI robot's
+        claimed view resolves them) keep `shared_weight` of it."""
+        out = self._own_priority(now)
+        for tile_id in left_to_others:
+            if tile_id in out:
+                out[tile_id] *= self.shared_weight
+        return out
+
+    def _own_priority(self, now: float) -> dict[int, float]:
         w = self.weights
         out = {}
         for tile_id, k in self.tiles.items():
@@ -119,17 +137,23 @@ class Exploration:
             if max(k.placed_at, k.suspected_at) > k.judged_at or k.state in (OCCLUDED, UNKNOWN, MISSING)
         )
 
-    def choose(self, candidates: Sequence[Pose2], here: Pose2, now: float, gains: Sequence[float]) -> tuple[int, float]:
+    def choose(
+        self, candidates: Sequence[Pose2], here: Pose2, now: float, gains: Sequence[float],
+        claimed: Sequence[Pose2] = (),
+    ) -> tuple[int, float]:
         """Index of the best candidate and its score.
 
         `gains[i]` is the priority candidate i would resolve (`viewpoint.rank_viewpoints` with the
         weights of `priority`); driving there costs `travel_cost` per metre. Candidates that failed
-        recently are skipped (all of them failing: the first one is returned); the place the robot
-        stands at counts half its gain.
+        recently, or lie within `claim_clearance` of a viewpoint another VI robot `claimed`, are
+        skipped (all of them skipped: the first one is returned); the place the robot stands at
+        counts half its gain.
         """
         best, best_score = 0, -math.inf
         for index, (pose, gain) in enumerate(zip(candidates, gains, strict=True)):
             if now - self.failed.get(index, -math.inf) < self.failure_memory:
+                continue
+            if any(math.dist(pose[:2], other[:2]) < self.claim_clearance for other in claimed):
                 continue
             distance = math.dist(here[:2], pose[:2])
             if distance < 0.05:  # a second look from the same place tells little new, and a

@@ -1,12 +1,15 @@
 """vi_explorer: drives the VI robot from viewpoint to viewpoint (paper section 2.2, prioritized
-exploration). Runs in the VI robot's namespace (`/vi`), next to `vi_node`.
+exploration). Runs in the VI robot's namespace (`/vi`, or `/vi1`, `/vi2`, ... for several), next to
+its `vi_node`.
 
 A thin adapter around `exploration.Exploration` and `viewpoint.rank_viewpoints`. In: the latched
 `/structure`, `/placement_reports` (tiles claimed placed, and supports a robot found absent: the
 priority), `/auction/announcements`
-(tiles no longer expected), `/tile_states` (what the scans judged). Out: goals to the base's
-`navigate_to` action. After each arrival it waits for the first tile states of a scan taken there
-(vi_node answers every scan: tile states, or why it has none), then chooses again. The other
+(tiles no longer expected), `/tile_states` (what the scans of every VI robot judged). Out: goals to
+the base's `navigate_to` action. After each arrival it waits for the first tile states of a scan
+its own robot took there (`robot_name`; vi_node answers every scan: tile states, or why it has
+none), then chooses again. With several VI robots, each claims its next viewpoint
+(`viewpoint_claims`) and leaves the others' to them (`exploration`). The other
 robots' overhead poses (`other_robots`, as vi_node follows them) tell it what they hide and where it
 cannot stand: a robot parked beside the structure blinds every viewpoint behind it.
 """
@@ -31,7 +34,7 @@ from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo
 from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, Structure, TileState, TileStateArray
 from tiling_ros.parameters import declare_settings, setting
-from tiling_ros.qos import COORDINATION, LATCHED, REPORTS
+from tiling_ros.qos import COORDINATION, LATCHED, OTHER_ROBOT_POSES, REPORTS
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import is_zero, stamp_to_nanoseconds, stamp_to_seconds
 from vi_node.camera_model import PinholeCamera
@@ -51,7 +54,8 @@ from vi_node.pose_matching import TeamPoses
 from vi_node.pose_prior import CameraMount, OverheadPose
 from vi_node.raycast import VirtualScene
 from vi_node.robot_mask import RobotBoxes
-from vi_node.viewpoint import rank_viewpoints
+from vi_node.viewpoint import ViewpointScore, rank_viewpoints
+from vi_node.viewpoint_claims import ViewpointClaims
 
 # the camera and the evidence rules are vi_node's (the same names in config/vi_node.yaml)
 _CAMERA = InspectionSettings()
@@ -87,6 +91,15 @@ class ExplorerSettings:
     travel_cost: float = setting(0.5, "Priority points one metre of driving costs.")
     other_robots: str = setting(_CAMERA.other_robots, "Robots whose overhead_pose to follow, comma-separated "
                                 "(empty: every one that appears).")
+    claim_clearance: float = setting(
+        Exploration.claim_clearance, "m: viewpoints this near one another VI robot claimed are left to it.")
+    shared_weight: float = setting(
+        Exploration.shared_weight, "Share of its priority a tile keeps that another VI robot's claimed view resolves.")
+    claim_age: float = setting(120.0, "s a viewpoint another VI robot claimed stands without news of it.")
+    idle_wait: float = setting(
+        3.0, "s of simulated time the robot stays without stopping for a scan when no tile is unresolved and no "
+        "other viewpoint is better (the camera's own frames go on meanwhile; a tile they leave unresolved ends "
+        "the wait).")
 
 
 class ExplorerNode(Node):
@@ -111,7 +124,10 @@ class ExplorerNode(Node):
         size = settings.intrinsics_size
         self.camera = PinholeCamera(fx, fy, cx, cy, int(size[0]), int(size[1]))
 
-        self.exploration = Exploration(PriorityWeights(), travel_cost=travel_cost)
+        self.exploration = Exploration(PriorityWeights(), travel_cost=travel_cost,
+                                       claim_clearance=float(settings.claim_clearance),
+                                       shared_weight=float(settings.shared_weight))
+        self.robot_name = self.get_namespace().strip("/")
         self.structure = None
         self.candidates: list[tuple[float, float, float]] = []
         self.placed: dict[int, int] = {}  # tile -> stamp (ns) of its latest placement report
@@ -119,8 +135,10 @@ class ExplorerNode(Node):
         self.scene: VirtualScene | None = None  # S_a for ray tracing candidate views
         self.scene_tiles: tuple[int, ...] = ()
         self.here: tuple[float, float, float] | None = None
+        self.start: tuple[float, float, float] | None = None  # the overhead cameras' pose before the first goal
         self.arrived_at: float | None = None  # s (node clock); None while driving
         self.arrived_wall = 0.0  # s (steady clock) of the arrival
+        self.idle_until = -math.inf  # s (node clock): staying put, nothing to resolve
         self.driving = False
         self.repeats = RepeatFilter()
         self.team = TeamPoses()
@@ -128,12 +146,15 @@ class ExplorerNode(Node):
                                         lambda line: self.get_logger().warn(line, throttle_duration_sec=10.0))
         self.other_robots.follow()
         self.create_timer(1.0, self.other_robots.follow)
+        self.claims = ViewpointClaims(self, float(settings.claim_age))
+        self.create_timer(1.0, self.claims.follow)
 
         self.navigate = ActionClient(self, NavigateTo, "navigate_to")
         self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
         self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
         self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
         self.create_subscription(TileStateArray, "/tile_states", self.on_states, COORDINATION)
+        self.create_subscription(PoseStamped, "overhead_pose", self.on_own_pose, OTHER_ROBOT_POSES)
         self.create_timer(0.5, self.tick)
         if self.structure_file:
             self.set_structure(load_structure(self.structure_file))
@@ -183,11 +204,22 @@ class ExplorerNode(Node):
         self.withdrawn[msg.tile_id] = stamp_to_nanoseconds(msg.header.stamp)
         self.update_expected()
 
+    def on_own_pose(self, msg: PoseStamped) -> None:
+        """Where the robot stands before its first goal (VI robots start apart: each looks near itself)."""
+        p, q = msg.pose.position, msg.pose.orientation
+        try:
+            pose = OverheadPose.from_quaternion(p.x, p.y, q.x, q.y, q.z, q.w)
+        except ValueError:
+            return  # a zero quaternion; vi_node says so
+        self.start = (pose.x, pose.y, pose.yaw)
+
     def on_states(self, msg: TileStateArray) -> None:
         stamp = stamp_to_seconds(msg.header.stamp)
         seen = self.repeats.fresh_states(msg.states)
         self.exploration.judged({s.tile_id: STATES.get(s.state, UNKNOWN) for s in msg.states if s.tile_id in seen},
                                 stamp)
+        if msg.robot_name and msg.robot_name != self.robot_name:
+            return  # another VI robot's scan: what it saw counts, but this robot's wait goes on
         if self.arrived_at is not None and stamp >= self.arrived_at + self.settle:
             if msg.problem and self.here is not None:  # the scan taken here gave no states
                 self.get_logger().info(f"no tile states from this viewpoint ({msg.problem}); trying another")
@@ -207,22 +239,34 @@ class ExplorerNode(Node):
             if self.here is not None:
                 self.exploration.viewpoint_failed(self.candidates.index(self.here), now)
             self.arrived_at = None
+        if now < self.idle_until and not self.exploration.unresolved():
+            return
         if not self.navigate.server_is_ready():
             self.get_logger().warn("navigate_to is not available", throttle_duration_sec=10.0)
             return
-        here = self.here or self.candidates[0]
+        here = self.here or self.start or self.candidates[0]
         tiles = [self.structure.tiles[t] for t in self.scene_tiles]
         low = np.min([t.aabb[0] for t in tiles], axis=0)
         high = np.max([t.aabb[1] for t in tiles], axis=0)
         poses = [OverheadPose(*c) for c in self.candidates]
         robots = self.team.at(self.get_clock().now().nanoseconds, int(ROBOT_POSE_AGE * 1e9))
-        ranked = rank_viewpoints(self.scene, low, high, self.camera, self.mount, poses,
-                                 self.exploration.priority(now), self.evidence,
-                                 min_range=self.range[0], max_range=self.range[1],
-                                 robots=RobotBoxes(robots, ROBOT_BOXES) if robots else None)
+        blocking = RobotBoxes(robots, ROBOT_BOXES) if robots else None
+        claimed = self.claims.current(now)
+
+        def rank(at: list[OverheadPose], wanted: dict[int, float], robots: RobotBoxes | None) -> list[ViewpointScore]:
+            return rank_viewpoints(self.scene, low, high, self.camera, self.mount, at, wanted, self.evidence,
+                                   min_range=self.range[0], max_range=self.range[1], robots=robots)
+
+        # the claimer stands at its claim soon: only the structure hides its view there
+        theirs = rank([OverheadPose(*c) for c in claimed], self.exploration.priority(now), None) if claimed else []
+        ranked = rank(poses, self.exploration.priority(now, left_to_others={t for r in theirs for t in r.resolves}),
+                      blocking)
         gain_of = {(r.pose.x, r.pose.y, r.pose.yaw): r.score for r in ranked}
         gains = [gain_of[(p.x, p.y, p.yaw)] for p in poses]
-        index, score = self.exploration.choose(self.candidates, here, now, gains)
+        index, score = self.exploration.choose(self.candidates, here, now, gains, claimed=claimed)
+        if self.candidates[index] == self.here and not self.exploration.unresolved():
+            self.idle_until = now + float(self.settings.idle_wait)  # no need to stop the world for a look
+            return
         self.go_to(self.candidates[index], score)
 
     def go_to(self, pose: tuple[float, float, float], score: float) -> None:
@@ -235,6 +279,7 @@ class ExplorerNode(Node):
         o = goal.target.pose.orientation
         o.x, o.y, o.z, o.w = q
         self.driving = True
+        self.claims.claim(pose, self.now())
         unresolved = self.exploration.unresolved()
         self.get_logger().info(
             f"next viewpoint ({pose[0]:+.2f}, {pose[1]:+.2f}, {math.degrees(pose[2]):+.0f} deg), score {score:.1f}; "

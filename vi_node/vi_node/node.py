@@ -6,7 +6,8 @@ camera_depth_optical_frame) and `overhead_pose` (geometry_msgs/PoseStamped, map)
 `/structure`, `/placement_reports` and `/auction/announcements`, and the `overhead_pose` of every
 other robot (`/<robot>/overhead_pose`: those named in `other_robots`, or every one that appears; the
 inspection leaves out what they hide); publishes `/tile_states`
-(one TileStateArray per classified scan), `/tile_markers` (tiles coloured by state, for RViz) and
+(one TileStateArray per classified scan, `robot_name` this robot's namespace: several VI robots
+share the topic), `/tile_markers` (tiles coloured by state, for RViz) and
 `/diagnostics`.
 
 S_a: the tiles claimed placed (PlacementReport OUTCOME_PLACED) of the structure on `/structure`;
@@ -82,6 +83,7 @@ class StartupError(RuntimeError):
 class ViNode(Node):
     def __init__(self) -> None:
         super().__init__("vi_node")
+        self.robot_name = self.get_namespace().strip("/")  # which VI robot's scans these are
         self.settings = self._declare_settings()
         self.structure: StructureModel | None = None
         if self.settings.structure_file:
@@ -373,7 +375,8 @@ class ViNode(Node):
         """Tell /tile_states (no states, the reason) and /diagnostics that a scan gave no states."""
         if self.context.ok():
             self.states_pub.publish(
-                TileStateArray(header=Header(stamp=scan.header.stamp, frame_id="map"), problem=message)
+                TileStateArray(header=Header(stamp=scan.header.stamp, frame_id="map"), problem=message,
+                               robot_name=self.robot_name)
             )
         self._diagnose(level, message, result)
 
@@ -382,6 +385,7 @@ class ViNode(Node):
         out = TileStateArray()
         out.header.stamp = scan.header.stamp
         out.header.frame_id = "map"
+        out.robot_name = self.robot_name
         out.scan_count = result.scan_count
         if result.camera_pose is not None:
             pose = result.camera_pose

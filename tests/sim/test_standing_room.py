@@ -1,0 +1,63 @@
+"""Room to stand (tiling_sim.standing_room), without ROS: a base never stands on another's."""
+
+from __future__ import annotations
+
+import math
+
+from tiling_sim.robot_motion import MotionModel
+from tiling_sim.standing_room import StandingRoom, alternative_spot, robot_boxes
+
+BASE = MotionModel(base_size=(0.33, 0.33), base_clearance=0.03, approach_distance=0.25)
+HALF = ((0.33 + 0.05) / 2, (0.33 + 0.05) / 2)  # a base plus half of a 5 cm clearance
+
+
+def test_a_spot_another_robot_holds_is_refused_until_it_has_gone_and_the_wait_is_recorded() -> None:
+    room = StandingRoom(HALF, {"robot1": (0.0, 0.0), "robot2": (2.0, 0.0), "vi": (0.0, 2.0)})
+    assert room.ask("robot2", (0.3, 0.1), now=10.0) == (["robot1"], None)  # 0.3 m apart: the bases touch
+    assert room.ask("robot2", (0.0, 1.7), now=11.0)[0] == ["vi"]  # a VI robot's stop is a claim too
+    assert room.claims["robot2"] == (2.0, 0.0)  # refused: it still stands where it stood
+    room.ask("robot1", (-1.0, 0.0), now=14.0)  # robot1 drives off: its claim goes with it
+    blocking, wait = room.ask("robot2", (0.3, 0.1), now=15.0)
+    assert blocking == [] and room.claims["robot2"] == (0.3, 0.1)
+    assert wait is not None
+    assert (wait.since, wait.seconds, wait.in_the_way, wait.forced, wait.elsewhere) == (10.0, 5.0, ("robot1",), False,
+                                                                                         False)
+    room.ask("robot1", (0.3, 0.3), now=20.0)
+    _, beside = room.ask("robot1", (-0.3, 0.3), now=20.0)  # another spot at once: it stopped elsewhere
+    assert beside is not None and beside.seconds == 0.0 and beside.elsewhere
+    assert room.ask("robot2", (0.3, 0.2), now=16.0) == ([], None)  # moving on its own spot: no wait
+
+
+def test_a_robot_that_insists_stands_there_anyway_and_the_crowding_is_recorded() -> None:
+    room = StandingRoom(HALF, {"robot1": (0.0, 0.0), "robot2": (2.0, 0.0)})
+    room.ask("robot2", (0.2, 0.0), now=0.0)
+    blocking, wait = room.ask("robot2", (0.2, 0.0), now=60.0, insist=True)
+    assert blocking == [] and wait is not None and wait.forced and wait.seconds == 60.0 and not wait.elsewhere
+    assert room.claims["robot2"] == (0.2, 0.0)
+
+
+def test_spots_just_clear_of_each_other_are_both_granted() -> None:
+    room = StandingRoom(HALF, {"robot1": (0.0, 0.0)})
+    assert room.ask("robot2", (0.39, 0.0), now=0.0) == ([], None)  # 6 cm between the bases
+    assert room.in_the_way("robot3", (0.37, 0.2)) == ["robot1", "robot2"]
+
+
+def test_another_stop_is_found_round_a_tile_within_reach_but_not_at_a_taken_cache() -> None:
+    cache = (1.0, -0.5)  # a base standing on it leaves no stop within the arm's reach of it
+    assert alternative_spot(BASE, cache, (0.0, 0.0), cache, robots=[cache], clearance=0.05) is None
+    tile = (0.0, 0.0)
+    preferred = (0.25, 0.0)
+    beside = alternative_spot(BASE, tile, (1.0, 0.0), preferred, robots=[preferred], clearance=0.05)
+    assert beside is not None and math.dist(beside, tile) <= 0.25 + 0.1 + 1e-9
+    assert max(abs(beside[0] - 0.25), abs(beside[1])) >= 0.38 - 1e-9
+
+
+def test_no_stop_within_reach_means_waiting() -> None:
+    tile = (0.0, 0.0)
+    ring = [(0.25 * math.cos(a), 0.25 * math.sin(a)) for a in [k * math.pi / 4 for k in range(8)]]
+    assert alternative_spot(BASE, tile, (1.0, 0.0), ring[0], robots=ring, clearance=0.05) is None
+
+
+def test_robot_boxes_are_counter_clockwise_squares() -> None:
+    (box,) = robot_boxes([(1.0, 2.0)], (0.5, 0.25))
+    assert box.tolist() == [[0.5, 1.75], [1.5, 1.75], [1.5, 2.25], [0.5, 2.25]]
