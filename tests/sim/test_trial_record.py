@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+from conftest import STRUCTURES
+
+from tiling_assembly.structure_file import load_structure
+from tiling_sim.experiment_result import ExperimentConfig, ExperimentResult
+from tiling_sim.report import room_wait_lines
 from tiling_sim.trial_record import (
     REASON_FOUND_MISSING,
     REASON_MISPLACED,
     REASON_MISSING,
     Announcement,
+    RoomWait,
     Scan,
     TrialRecord,
     WorldEvent,
@@ -16,6 +22,7 @@ from tiling_sim.trial_record import (
     false_repairs,
     lost_placements,
     misplacement_outcomes,
+    schedule,
 )
 
 
@@ -132,3 +139,18 @@ def test_wrong_landings_are_detected_when_their_repair_is_auctioned_and_repaired
     ]
     assert false_repairs(r) == [{"t": 96.0, "tile": 8}, {"t": 97.0, "tile": 6}]
     assert not r.present_at(6, 50.0, r.presence_intervals())  # taken off ends its stay
+
+
+def test_waits_for_room_show_in_the_schedule_and_the_summary() -> None:
+    r = record()
+    r.completed_at = 200.0
+    r.room_waits = [RoomWait("robot1", 20.0, 0.0, ("robot2",), forced=False, elsewhere=True),
+                    RoomWait("robot2", 30.0, 12.0, ("robot1",), forced=False),
+                    RoomWait("robot2", 90.0, 60.0, ("vi",), forced=True)]
+    rooms = [i for i in schedule(r) if i.kind == "wait for room"]
+    assert [(i.robot, i.start, i.end) for i in rooms] == [("robot2", 30.0, 42.0), ("robot2", 90.0, 150.0)]
+    result = ExperimentResult(ExperimentConfig(), load_structure(STRUCTURES / "paper_14.yaml"), [r])
+    (line,) = room_wait_lines(result)
+    assert line == ("Trial 1: another robot stood where a robot needed to be 3 times: it stopped elsewhere 1 times, "
+                    "waited 2 times, 72 s in all (36.0% of the makespan, summed over robots); "
+                    "1 went in anyway after waiting their patience")

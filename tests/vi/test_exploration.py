@@ -69,6 +69,8 @@ def test_another_vi_robots_claim_keeps_this_one_away_from_its_place_and_its_tile
     assert exploration.choose(candidates, here, 30.0, [5.0, 3.0, 1.0], claimed=[(0.1, 1.2, 0.0)])[0] == 1
     every = [(0.0, 1.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0)]
     assert exploration.choose(candidates, here, 30.0, [5.0, 3.0, 1.0], claimed=every)[0] == 0  # none left: the first
+    # before any claim: a viewpoint nearer another VI robot than this one counts a quarter
+    assert exploration.choose(candidates, here, 30.0, [5.0, 3.0, 1.0], neighbours=[(0.0, 1.5, 0.0)])[0] == 1
 
 
 def test_ring_viewpoints_face_the_structure() -> None:

@@ -46,7 +46,7 @@ from tiling_sim.trial_record import (
 
 STATE_COLOURS = {PRESENT: "#3a9d3a", MISSING: "#d43a3a", OCCLUDED: "#e8c23a", "unknown": "#9a9a9a"}
 KIND_COLOURS = {"place": "#4a78c2", "replace": "#e0892b", "take off": "#2f9e6e", "failed": "#c23a3a",
-                "wait": "#d9d9d9"}
+                "wait": "#d9d9d9", "wait for room": "#8c6bb1"}
 PAPER = {"removed": 22, "detected": 12, "undetermined": 10, "missing_called_present": 0, "present_called_missing": 1}
 
 
@@ -316,7 +316,7 @@ def draw_gantt(record: TrialRecord, robots: list[str], path: Path) -> None:
         if interval.robot not in rows:
             continue
         y = rows[interval.robot]
-        height = 0.35 if interval.kind == "wait" else 0.7
+        height = 0.35 if interval.kind.startswith("wait") else 0.7
         ax.broken_barh([(interval.start, interval.end - interval.start)], (y - height / 2, height),
                        facecolors=KIND_COLOURS[interval.kind], edgecolor="#333333", linewidth=0.4)
         if interval.tile and interval.end - interval.start > 4:

@@ -369,13 +369,13 @@ class Interval:
     robot: str
     start: float
     end: float
-    kind: str  # place, replace, take off, wait, failed
+    kind: str  # place, replace, take off, wait, failed, wait for room
     tile: int = 0
 
 
 def schedule(record: TrialRecord) -> list[Interval]:
-    """Per robot: placements (re-placements marked), take-offs of a repair, failed attempts and waits,
-    for the Gantt chart."""
+    """Per robot: placements (re-placements marked), take-offs of a repair, failed attempts, waits for
+    supports and waits for room to stand, for the Gantt chart."""
     removed_before: set[int] = set()
     started: dict[str, tuple[float, int]] = {}
     intervals: list[Interval] = []
@@ -398,6 +398,8 @@ def schedule(record: TrialRecord) -> list[Interval]:
             waiting[sample.robot] = sample.t
         elif sample.state != 1 and sample.robot in waiting:
             intervals.append(Interval(sample.robot, waiting.pop(sample.robot), sample.t, "wait"))
+    intervals += [Interval(w.robot, w.since, w.since + w.seconds, "wait for room")
+                  for w in record.room_waits if w.seconds]
     return intervals
 
 

@@ -17,10 +17,12 @@ it; the next one is the candidate whose view (predicted by ray tracing S_a, see
 Several VI robots (the paper's N_s) divide the work by claims rather than by fixed sectors of the
 ring: each explorer announces the viewpoint it drives to, and the others leave every viewpoint within
 `claim_clearance` of it alone and count the tiles that view will resolve at `shared_weight` of their
-priority. So they look from different places at different tiles, yet all of them can go where the
-building happens (a fixed split of the ring would idle the robot whose sector is finished), and a
-tile one robot called missing is still worth a look from a second robot elsewhere (the auction node
-confirms from two camera positions). A claim that is never renewed (its robot died) lapses.
+priority. A viewpoint nearer another VI robot than this one counts `shared_weight` of its gain too,
+so that at the start, before any claim is heard, each begins on its own side. So they look from
+different places at different tiles, yet all of them can go where the building happens (a fixed
+split of the ring would idle the robot whose sector is finished), and a tile one robot called
+missing is still worth a look from a second robot elsewhere (the auction node confirms from two
+camera positions). A claim that is never renewed (its robot died) lapses.
 """
 
 from __future__ import annotations
@@ -139,7 +141,7 @@ class Exploration:
 
     def choose(
         self, candidates: Sequence[Pose2], here: Pose2, now: float, gains: Sequence[float],
-        claimed: Sequence[Pose2] = (),
+        claimed: Sequence[Pose2] = (), neighbours: Sequence[Pose2] = (),
     ) -> tuple[int, float]:
         """Index of the best candidate and its score.
 
@@ -147,7 +149,8 @@ class Exploration:
         weights of `priority`); driving there costs `travel_cost` per metre. Candidates that failed
         recently, or lie within `claim_clearance` of a viewpoint another VI robot `claimed`, are
         skipped (all of them skipped: the first one is returned); the place the robot stands at
-        counts half its gain.
+        counts half its gain; one nearer another VI robot (`neighbours`, where they stand) than
+        `here`, `shared_weight` of it.
         """
         best, best_score = 0, -math.inf
         for index, (pose, gain) in enumerate(zip(candidates, gains, strict=True)):
@@ -156,6 +159,8 @@ class Exploration:
             if any(math.dist(pose[:2], other[:2]) < self.claim_clearance for other in claimed):
                 continue
             distance = math.dist(here[:2], pose[:2])
+            if any(math.dist(other[:2], pose[:2]) < distance for other in neighbours):
+                gain *= self.shared_weight
             if distance < 0.05:  # a second look from the same place tells little new, and a
                 gain *= 0.5  # missing call is confirmed from another camera position
             score = gain - self.travel_cost * distance

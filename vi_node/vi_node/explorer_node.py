@@ -263,7 +263,9 @@ class ExplorerNode(Node):
                       blocking)
         gain_of = {(r.pose.x, r.pose.y, r.pose.yaw): r.score for r in ranked}
         gains = [gain_of[(p.x, p.y, p.yaw)] for p in poses]
-        index, score = self.exploration.choose(self.candidates, here, now, gains, claimed=claimed)
+        neighbours = [(p.x, p.y, p.yaw) for p in self.team.latest(self.claims.robots())]
+        index, score = self.exploration.choose(self.candidates, here, now, gains, claimed=claimed,
+                                               neighbours=neighbours)
         if self.candidates[index] == self.here and not self.exploration.unresolved():
             self.idle_until = now + float(self.settings.idle_wait)  # no need to stop the world for a look
             return

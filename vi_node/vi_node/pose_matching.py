@@ -31,6 +31,10 @@ class PoseBuffer:
             del self._stamps[0], self._poses[0]
 
     @property
+    def latest(self) -> OverheadPose | None:
+        return self._poses[-1] if self._poses else None
+
+    @property
     def latest_stamp(self) -> int | None:
         return self._stamps[-1] if self._stamps else None
 
@@ -56,6 +60,11 @@ class TeamPoses:
 
     def add(self, robot: str, stamp_ns: int, pose: OverheadPose) -> None:
         self.buffers.setdefault(robot, PoseBuffer(self.capacity)).add(stamp_ns, pose)
+
+    def latest(self, robots: list[str]) -> list[OverheadPose]:
+        """The latest pose of each of `robots` heard of."""
+        buffers = [self.buffers[r] for r in robots if r in self.buffers]
+        return [b.latest for b in buffers if b.latest is not None]
 
     def at(self, stamp_ns: int, tolerance_ns: int) -> list[OverheadPose]:
         """Where each robot was at `stamp_ns`: its pose nearest in time, if within the tolerance."""

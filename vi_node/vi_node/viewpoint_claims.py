@@ -54,6 +54,10 @@ class ViewpointClaims:
                 self.subscriptions[topic] = self.node.create_subscription(
                     PoseStamped, topic, lambda msg, topic=topic: self._heard(topic, msg), LATCHED)
 
+    def robots(self) -> list[str]:
+        """The other VI robots (those whose explorer claims viewpoints), claimed yet or not."""
+        return [topic.split("/")[1] for topic in self.subscriptions]
+
     def current(self, now: float) -> list[Pose2]:
         """The other robots' claims that still stand at `now` (s)."""
         return [pose for stamp, pose in self.claims.values() if now - stamp <= self.max_age]
