@@ -208,13 +208,17 @@ class SimRobot(Node):
         `room_patience` s anyway (`standing_room`)."""
         s = self.settings
         waited = 0.0
+        searched: list[Point2] | None = None  # the other robots' spots the last search was for
         while True:
             answer = await self.ask(SimPlace.Request.GOING_TO, x=preferred[0], y=preferred[1],
                                     insist=waited >= s.room_patience)
             if answer.outcome == SimPlace.Response.OK:
                 return preferred, at
             others = [(p.x, p.y) for p in answer.robots]
-            spot = alternative_spot(self.motion, around, towards, preferred, others, s.robot_clearance, obstacles)
+            spot = None
+            if others != searched:  # nobody moved: no new stop to find
+                spot = alternative_spot(self.motion, around, towards, preferred, others, s.robot_clearance, obstacles)
+                searched = others
             if spot is not None:
                 answer = await self.ask(SimPlace.Request.GOING_TO, x=spot[0], y=spot[1])
                 if answer.outcome == SimPlace.Response.OK:

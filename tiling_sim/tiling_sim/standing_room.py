@@ -88,9 +88,12 @@ def alternative_spot(
     # approach_point keeps the tiles' clearance from every obstacle: robots' boxes grow by the rest
     grow = max(clearance - model.base_clearance, 0.0)
     taken = robot_boxes(robots, (model.base_size[0] / 2 + grow, model.base_size[1] / 2 + grow))
-    spot = approach_point(model, target, towards, [*obstacles, *taken])
     limit = max(float(np.hypot(preferred[0] - target[0], preferred[1] - target[1])), model.approach_distance) + reach
     half = (model.base_size[0] / 2 + model.base_clearance, model.base_size[1] / 2 + model.base_clearance)
+    # only what a base within `limit` of the target can touch: the search's span follows its obstacles
+    near = limit + float(np.hypot(*half))
+    close = [p for p in [*obstacles, *taken] if float(np.min(np.hypot(*(p - np.asarray(target)).T))) <= near]
+    spot = approach_point(model, target, towards, close or taken)
     blocked = any(footprints_overlap(np.array([spot]), half, box)[0] for box in taken)
     if blocked or float(np.hypot(spot[0] - target[0], spot[1] - target[1])) > limit:
         return None
