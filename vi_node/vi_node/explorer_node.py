@@ -63,6 +63,8 @@ _EVIDENCE = EvidenceSettings()
 STATES = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING, TileState.OCCLUDED: OCCLUDED}
 ROBOT_BOXES = _CAMERA.robot_mask()
 ROBOT_POSE_AGE = 60.0  # s: a robot's latest overhead pose stands for it that long (robots wait long)
+FIRST_GOAL_DISCOVERY = 3.0  # s of wall time for the other VI robots to be discovered before the first goal
+FIRST_GOAL_PATIENCE = 10.0  # s of wall time after which the first goal goes without this robot's own pose
 
 
 @dataclass(frozen=True)
@@ -136,6 +138,7 @@ class ExplorerNode(Node):
         self.scene_tiles: tuple[int, ...] = ()
         self.here: tuple[float, float, float] | None = None
         self.start: tuple[float, float, float] | None = None  # the overhead cameras' pose before the first goal
+        self.started_wall = time.monotonic()
         self.arrived_at: float | None = None  # s (node clock); None while driving
         self.arrived_wall = 0.0  # s (steady clock) of the arrival
         self.idle_until = -math.inf  # s (node clock): staying put, nothing to resolve
@@ -230,6 +233,8 @@ class ExplorerNode(Node):
     def tick(self) -> None:
         if self.structure is None or self.driving or self.scene is None or not self.scene_tiles:
             return
+        if self.here is None and not self.ready_for_a_first_goal():
+            return
         now = self.now()
         if self.arrived_at is not None and time.monotonic() < self.arrived_wall + self.scan_timeout:
             return  # still waiting for the verdict of a scan from here
@@ -270,6 +275,15 @@ class ExplorerNode(Node):
             self.idle_until = now + float(self.settings.idle_wait)  # no need to stop the world for a look
             return
         self.go_to(self.candidates[index], score)
+
+    def ready_for_a_first_goal(self) -> bool:
+        """The first viewpoint is chosen once this robot knows where it stands and the other VI robots
+        have had `FIRST_GOAL_DISCOVERY` s to be found (they all choose at the start: each should see
+        the others' side of the ring as theirs), or after `FIRST_GOAL_PATIENCE` s in any case."""
+        waited = time.monotonic() - self.started_wall
+        self.claims.follow()
+        self.other_robots.follow()
+        return (self.start is not None and waited >= FIRST_GOAL_DISCOVERY) or waited >= FIRST_GOAL_PATIENCE
 
     def go_to(self, pose: tuple[float, float, float], score: float) -> None:
         goal = NavigateTo.Goal()
