@@ -87,3 +87,11 @@ def test_every_repair_of_every_partly_built_structure_is_physically_possible(str
                 placed.add(tile)
         for wrong in placed:
             check_physics(structure, plan_repair(structure, wrong, placed), placed)
+
+
+def test_what_rests_on_a_tile_directly_or_through_others() -> None:
+    assert PAPER.resting_above[11] == {13}
+    assert PAPER.resting_above[9] == {11, 13}
+    assert PAPER.resting_above[7] == {5, 8, 10, 12, 14}
+    assert PAPER.resting_above[13] == frozenset()
+    assert GATE.resting_above[5] == {6, 7, 8, 9}

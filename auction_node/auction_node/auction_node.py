@@ -136,6 +136,7 @@ class AuctionNode(Node):
         self.in_lost_hands: dict[str, tuple[int, float]] = {}  # lost robot -> (tile in its hands, node time)
         self.lost_tile_grace = float(settings.lost_tile_grace)
         self.under_repair: set[int] = set()  # tiles auctioned for repair and not yet placed again
+        self.told_deferred: dict[int, int] = {}  # tile -> the wrong tile on it its verdicts last waited for
 
         self.announce_pub = topics.ANNOUNCEMENTS.publisher(self)
         self.award_pub = topics.AWARDS.publisher(self)
@@ -211,7 +212,7 @@ class AuctionNode(Node):
         if tile_id in self.under_repair:
             return
         self.under_repair.add(tile_id)
-        self.detector.unplaced(tile_id)
+        self.detector.lies_wrong(tile_id)
         self.detected_wall[tile_id] = time.time()
         self.decide(f"tile {tile_id} lies wrong ({why}): repairing it")
         self.announce(tile_id, AuctionAnnouncement.REASON_MISPLACED)
@@ -222,13 +223,15 @@ class AuctionNode(Node):
             self.structure = structure_from_msg(msg, "/structure")
         except StructureError as error:
             self.get_logger().error(f"ignoring the structure on /structure: {error}")
+            return
+        self.detector.above = self.structure.resting_above
 
     def on_report(self, msg: PlacementReport) -> None:
         if msg.outcome == PlacementReport.OUTCOME_PLACED:
             self.detector.placed(msg.tile_id, stamp_to_seconds(msg.header.stamp))
             self.under_repair.discard(msg.tile_id)
         elif msg.outcome == PlacementReport.OUTCOME_REMOVED:
-            self.detector.unplaced(msg.tile_id)
+            self.detector.taken_off(msg.tile_id)
         elif msg.outcome == PlacementReport.OUTCOME_BLOCKED:
             for wrong in msg.wrong_tiles:
                 self.repair(wrong, f"{msg.robot_name} found it in the way when placing tile {msg.tile_id}")
@@ -272,14 +275,25 @@ class AuctionNode(Node):
             self.detected_wall[tile_id] = detected
             self.decide(f"tile {tile_id} was placed but the scan says missing (q * q^s = -1)")
             self.announce(tile_id, AuctionAnnouncement.REASON_MISSING)
+        self.tell_deferred({t for t, value in sensing.items() if value == MISSING})
         verdicts = {s.tile_id: s.state == TileState.MISPLACED for s in msg.states
                     if s.tile_id in fresh and s.state in (TileState.PRESENT, TileState.MISPLACED)}
         offsets = {s.tile_id: s for s in msg.states}
-        for tile_id in self.detector.flagged(verdicts, at, view):
+        flagged = self.detector.flagged(verdicts, at, view)
+        self.tell_deferred({t for t, wrong in verdicts.items() if wrong})
+        for tile_id in flagged:
             found = offsets[tile_id]
             self.repair(tile_id, f"scans from {self.detector.confirmations} camera positions say misplaced, last "
                                  f"off by {100 * (found.offset_x ** 2 + found.offset_y ** 2) ** 0.5:.1f} cm, "
                                  f"{math.degrees(found.offset_yaw):+.0f} deg")
+
+    def tell_deferred(self, called_wrong: set[int]) -> None:
+        """One line the first time a scan's word against a tile waits for the wrong tile on it."""
+        for tile_id, wrong in self.detector.deferred.items():
+            if tile_id in called_wrong and self.told_deferred.get(tile_id) != wrong:
+                self.told_deferred[tile_id] = wrong
+                self.decide(f"tile {tile_id} looks wrong or missing, but tile {wrong} on it lies wrong: "
+                            f"judged again once that tile is repaired")
 
     def on_plan(self, msg: AssemblyPlan) -> None:
         self.plan_revision = max(self.plan_revision, msg.revision)

@@ -22,6 +22,12 @@ Beyond the paper too (its future work): a placed tile that scans call MISPLACED 
 planned pose, or of another shape) is confirmed as a missing one is, by `confirmations` scans from
 camera positions `min_view_change` apart with no present verdict between them (`flagged`), and then
 goes to repair.
+
+A tile with a wrong tile on it (resting on it, directly or through others) cannot be judged: the
+wrong tile's faces, where the plan has none, look like its own moved or gone (a long rectangle's
+place holding an octagon made the square under its end look turned 33 degrees). Its verdicts
+neither confirm nor clear until that tile is placed right again, or taken off; nor while a tile on
+it is suspected (called misplaced, not yet confirmed): the one on top is judged first.
 """
 
 from __future__ import annotations
@@ -48,6 +54,9 @@ class MismatchDetector:
     missing_streak: dict[int, list[View | None]] = field(default_factory=dict)  # views that called it missing
     misplaced_streak: dict[int, list[View | None]] = field(default_factory=dict)  # views that called it misplaced
     placed_at: dict[int, float] = field(default_factory=dict)  # s, time of the latest placement
+    above: Mapping[int, frozenset[int]] = field(default_factory=dict)  # tile -> the tiles resting on it, all
+    lying_wrong: set[int] = field(default_factory=set)  # confirmed lying wrong, still on the structure
+    deferred: dict[int, int] = field(default_factory=dict)  # tile -> a wrong (or suspect) tile on it, last call
 
     def placed(self, tile_id: int, at: float = -math.inf) -> None:
         """A robot reported `tile_id` placed at time `at` (s)."""
@@ -56,6 +65,28 @@ class MismatchDetector:
         self.q_sensed[tile_id] = UNDETERMINED
         self.missing_streak.pop(tile_id, None)
         self.misplaced_streak.pop(tile_id, None)
+        self.lying_wrong.discard(tile_id)
+
+    def taken_off(self, tile_id: int) -> None:
+        """A robot took `tile_id` off the structure (for a repair): it hides nothing any more."""
+        self.unplaced(tile_id)
+        self.lying_wrong.discard(tile_id)
+
+    def lies_wrong(self, tile_id: int) -> None:
+        """`tile_id` lies wrong (confirmed by scans, or a robot found it in the way): no longer placed
+        as planned, and what it rests on cannot be judged until it is placed right or taken off."""
+        self.unplaced(tile_id)
+        self.lying_wrong.add(tile_id)
+        for below in (t for t, on_it in self.above.items() if tile_id in on_it):
+            self.missing_streak.pop(below, None)  # seen with the wrong tile on it: no evidence
+            self.misplaced_streak.pop(below, None)
+
+    def wrong_on(self, tile_id: int) -> int | None:
+        """A tile lying wrong, or suspected to, that rests on `tile_id` (directly or not); None if none."""
+        for above in sorted(self.above.get(tile_id, ())):
+            if above in self.lying_wrong or self.misplaced_streak.get(above):
+                return above
+        return None
 
     def unplaced(self, tile_id: int) -> None:
         """`tile_id` is known not to be in the structure as planned (found missing or lying wrong, taken
@@ -72,14 +103,25 @@ class MismatchDetector:
         reports them placed again.
         """
         found = []
-        for tile_id, misplaced in verdicts.items():
+        self.deferred = {}
+        # the tiles on top first: a suspect on top defers the verdicts on what it rests on
+        for tile_id, misplaced in sorted(verdicts.items(), key=lambda v: len(self.above.get(v[0], ()))):
             if at < self.placed_at.get(tile_id, -math.inf) or self.q.get(tile_id, 0) != 1:
+                continue
+            if self._defer(tile_id):
                 continue
             if not misplaced:
                 self.misplaced_streak.pop(tile_id, None)
             elif self._confirmed(self.misplaced_streak, tile_id, view):
+                self.lies_wrong(tile_id)
                 found.append(tile_id)
         return sorted(found)
+
+    def _defer(self, tile_id: int) -> bool:
+        wrong = self.wrong_on(tile_id)
+        if wrong is not None:
+            self.deferred[tile_id] = wrong
+        return wrong is not None
 
     def sensed(self, states: Mapping[int, int], at: float = math.inf, view: View | None = None) -> list[int]:
         """Take the sensing vector of a scan taken at `at` from camera position `view` (tile id -> 1,
@@ -88,9 +130,12 @@ class MismatchDetector:
         Returns the tiles now missing.
         """
         found = []
+        self.deferred = {}
         for tile_id, value in states.items():
             if at < self.placed_at.get(tile_id, -math.inf):
                 continue  # the scan predates the placement
+            if self._defer(tile_id):
+                continue
             self.q_sensed[tile_id] = value
             if value == PRESENT:
                 self.missing_streak.pop(tile_id, None)  # an undetermined scan neither confirms nor clears

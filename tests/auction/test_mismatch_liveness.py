@@ -121,3 +121,42 @@ def test_a_tile_lying_wrong_is_confirmed_from_two_standpoints_with_no_present_ve
     assert detector.flagged({4: True}, at=25.0, view=(0.0, -1.0)) == []
     detector.placed(4, at=30.0)
     assert detector.flagged({4: True}, at=31.0, view=(0.0, -1.0)) == []  # the old streak is forgotten
+
+
+def test_a_tile_under_a_wrong_one_is_judged_only_once_that_one_is_repaired() -> None:
+    """paper_14: long rectangle 11 rests on square 9 and octagon 4, triangle 13 on 11. An octagon in
+    11's place makes square 9 look turned: the one on top is judged first, and what lies under a
+    wrong tile waits for its repair."""
+    detector = MismatchDetector(confirmations=2, min_view_change=0.15, above={9: frozenset({11, 13}),
+                                                                           4: frozenset({11, 13}),
+                                                                           11: frozenset({13})})
+    for tile in (4, 9, 11, 13):
+        detector.placed(tile, at=0.0)
+    # both called misplaced in one scan: 11, on top, starts its streak; 9 waits for it
+    assert detector.flagged({9: True, 11: True}, at=10.0, view=(1.0, 0.0)) == []
+    assert detector.deferred == {9: 11}
+    assert detector.flagged({9: True, 11: True}, at=11.0, view=(0.0, 1.0)) == [11]
+    assert detector.misplaced_streak.get(9) is None and 11 in detector.lying_wrong
+    # while 11 lies wrong, nothing said of 9 or 4 counts, missing or misplaced, nor clears
+    assert detector.flagged({9: True}, at=12.0, view=(-1.0, 0.0)) == []
+    assert detector.flagged({9: True}, at=13.0, view=(0.0, -1.0)) == []
+    assert detector.sensed({4: MISSING}, at=14.0, view=(-1.0, 0.0)) == []
+    assert detector.sensed({4: MISSING}, at=15.0, view=(0.0, -1.0)) == []
+    assert detector.q[9] == 1 and detector.q[4] == 1
+    # 13 and 11 taken off, the right 11 placed: 9 is judged afresh
+    detector.taken_off(13)
+    detector.taken_off(11)
+    detector.placed(11, at=20.0)
+    assert detector.flagged({9: True}, at=21.0, view=(1.0, 0.0)) == []
+    assert detector.flagged({9: True}, at=22.0, view=(0.0, 1.0)) == [9]
+
+
+def test_a_tile_a_robot_found_in_the_way_defers_what_it_rests_on() -> None:
+    detector = MismatchDetector(confirmations=1, above={5: frozenset({10})})
+    detector.placed(5, at=0.0)
+    detector.placed(10, at=0.0)
+    detector.lies_wrong(10)  # a robot placing a tile found 10 in the way
+    assert detector.sensed({5: MISSING}, at=1.0, view=(1.0, 0.0)) == []
+    assert detector.deferred == {5: 10}
+    detector.taken_off(10)
+    assert detector.sensed({5: MISSING}, at=2.0, view=(1.0, 0.0)) == [5]

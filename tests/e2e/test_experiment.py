@@ -154,14 +154,14 @@ def test_a_shifted_tile_and_a_wrong_tile_under_another_are_found_and_repaired(ex
     assert {(tile, m["kind"]) for tile, m in by_tile.items()} == {(10, "shift"), (11, "wrong_type")}
     for m in by_tile.values():
         assert m["injected_at"] < m["detected_at"] < m["repaired_at"], m
-    assert trial["false_repairs"] == 0  # no tile in place was ever repaired
+    assert trial["false_repairs"] == 0, trial["decisions"]  # no tile in place was ever repaired
     repairs = [d for d in trial["decisions"] if "lying wrong: repair" in d]
     assert len(repairs) == 2 and all(" for tile 10 " in d or " for tile 11 " in d for d in repairs)
     placed_13 = [p["t"] for p in trial["placements"] if p["tile"] == 13]
     if any("13 rests on it and comes off first" in d for d in repairs):
         # put back after the right tile 11 went in: both end correct (the world says complete)
         assert len(placed_13) == 2 and placed_13[1] > by_tile[11]["repaired_at"]
-    assert trial["duplicate_placements"] == [] and trial["lost_placements"] == []
+    assert trial["duplicate_placements"] == [] and trial["lost_placements"] == [], trial["decisions"]
     assert "Placements that landed wrong, and their repair" in result.stdout
 
 

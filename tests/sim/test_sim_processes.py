@@ -36,7 +36,9 @@ from tiling_assembly_msgs.srv import SimSnapshot
 from tiling_ros.qos import SIM_EVENTS
 from tiling_ros.stamps import stamp_to_nanoseconds
 from tiling_sim.robot_motion import placement_phases
+from tiling_sim.scan_bag import read_truth
 from tiling_sim.sim_settings import RobotBodySettings
+from vi_node.classify_bag import read_recording
 
 pytestmark = pytest.mark.ros
 
@@ -60,13 +62,14 @@ class Simulator:
     """sim_world, /robot1's sim_robot and /vi's sim_vi on a ROS domain of their own, and a node of
     the test that watches them; `world_later`: the world is started by `start_world`."""
 
-    def __init__(self, world_later: bool = False, world_arguments: tuple[str, ...] = ()) -> None:
+    def __init__(self, world_later: bool = False, world_arguments: tuple[str, ...] = (),
+                 vi_arguments: tuple[str, ...] = ()) -> None:
         self.domain = fresh_domain()
         self.world_arguments = world_arguments
         body = ("-p", "use_sim_time:=true")
         self.processes = {
             "sim_robot": self._start(_command("sim_robot", "/robot1", *body)),
-            "sim_vi": self._start(_command("sim_vi", "/vi", *body)),
+            "sim_vi": self._start(_command("sim_vi", "/vi", *body, *vi_arguments)),
         }
         if not world_later:
             self.start_world()
@@ -300,3 +303,25 @@ def test_a_robot_standing_at_a_cache_keeps_another_from_it_until_patience_runs_o
             [("robot1", ["robot2"], pytest.approx(60.0, abs=0.01), True)]
     finally:
         crowded.close()
+
+
+def test_recorded_kinect_frames_replay_with_their_poses_and_the_truth(tmp_path: Path) -> None:
+    """sim_vi with `record_scans` (experiment --record-scans): every frame, the overhead poses the
+    team got and the truth go to a rosbag2 that `vi_node classify` reads, closed cleanly at Ctrl-C."""
+    bag = tmp_path / "vi_scans"
+    recording = Simulator(vi_arguments=("-p", f"record_scans:={bag}"))
+    try:
+        assert recording.spin_until(lambda: len(recording.clouds) >= 2, 60.0), "no Kinect frames"
+    finally:
+        outputs = recording.close()
+    assert not any("ERROR" in output for output in outputs.values()), outputs
+    replay = read_recording(bag)
+    scans = list(replay.scans)
+    truth = read_truth(bag)
+    assert len(scans) >= 2 and len(truth["scans"]) == len(scans)
+    assert all(scan.cloud is not None and scan.cloud.shape == (480, 640, 3) for scan in scans)
+    for scan, told in zip(scans, truth["scans"], strict=True):
+        assert told["stamp_ns"] == scan.stamp_ns and told["present"] == [] and told["robot"] == "vi"
+        assert replay.poses.nearest(scan.stamp_ns, 100_000_000) is not None  # the overhead pose of that time
+    assert len(told["pose"]) == 3 and told["robots"] and all(len(xy) == 2 for xy in told["robots"])
+    assert truth["structure_file"].endswith("paper_14.yaml")

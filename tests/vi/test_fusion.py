@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tiling_assembly.scan_freshness import RepeatFilter
 from vi_node.classify import TileState
 from vi_node.evidence import TileEvidence
 from vi_node.fusion import TileFusion, fuse_scan
@@ -126,3 +127,27 @@ def test_fuse_scan_turns_a_scan_result_into_fused_tile_results() -> None:
     assert second.by_id()[2].scans == 2
     failed = ScanResult(False, "alignment failed")
     assert fuse_scan(fusion, failed) is failed and fusion.scans == 2
+
+
+def test_a_flag_repeated_by_a_later_view_is_not_a_new_observation() -> None:
+    """One misaligned scan flagged tile 4; later views that do not flag it themselves report it
+    misplaced with the flagging scan's counts, so the auction node does not take the repeat for a
+    confirmation from another camera position (tiling_assembly.scan_freshness)."""
+    fusion, freshness = TileFusion(), RepeatFilter()
+
+    def scan(agree: int, through: int, flagged: bool) -> ScanResult:
+        e = seen(agree, through, 120)
+        state = TileState.OCCLUDED
+        return ScanResult(True, tiles=[TileResult(4, state, agree, 120, 0.5)], tile_ids=(4,), evidence=e,
+                          evidence_states=np.array([int(state)]),
+                          misplacement={4: (flagged, (0.024, 0.027, 0.0) if flagged else (0.0, 0.0, 0.0), 0.01)})
+
+    def fresh_and_misplaced(result: ScanResult) -> bool:
+        tile = result.by_id()[4]
+        evidence = {4: (tile.scans, tile.physical, tile.see_through)}
+        return bool(freshness.fresh(evidence)) and tile.state == TileState.MISPLACED
+
+    assert fresh_and_misplaced(fuse_scan(fusion, scan(60, 40, flagged=True)))
+    repeat = fuse_scan(fusion, scan(50, 30, flagged=False))
+    assert repeat.by_id()[4].state == TileState.MISPLACED and not fresh_and_misplaced(repeat)
+    assert fresh_and_misplaced(fuse_scan(fusion, scan(55, 35, flagged=True)))  # flagged again: news

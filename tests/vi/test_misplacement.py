@@ -101,9 +101,11 @@ def test_a_refit_of_a_tile_that_is_gone_is_not_a_misplacement() -> None:
     still covers part of its place, so some of its pixels agree with it there."""
     settings = MisplacementSettings()
     moved = TileFit(points=200, residual=0.02, judged=True, misplaced=True, offset=(0.03, 0.0, 0.0))
-    assert confirmed_by_pixels(moved, agree=120, disagree=80, settings=settings)
-    assert not confirmed_by_pixels(moved, agree=0, disagree=150, settings=settings, blank=40)
-    assert not confirmed_by_pixels(moved, agree=5, disagree=100, settings=settings, blank=20)
+    assert confirmed_by_pixels(moved, agree=120, see_through=50, in_front=30, settings=settings)
+    assert not confirmed_by_pixels(moved, agree=0, see_through=150, in_front=0, settings=settings, blank=40)
+    assert not confirmed_by_pixels(moved, agree=5, see_through=100, in_front=0, settings=settings, blank=20)
+    # only something in front of it (a wrong tile lying on it): no sign it left its place
+    assert not confirmed_by_pixels(moved, agree=19, see_through=0, in_front=66, settings=settings)
 
 
 @pytest.mark.parametrize("tile", [13, 11])

@@ -274,6 +274,19 @@ def test_bad_input_and_the_expected_structure_over_ros(probe: Probe) -> None:
         probe.spin_until(lambda: False, 0.5)
         send(cloud, lambda: len(probe.states) == 3)
         assert 12 in [s.tile_id for s in probe.states[2].states]
+        # a repair: the wrong tile still lies there (and hides what it hid) until it is reported taken off
+        repair = AuctionAnnouncement(tile_id=12, reason=AuctionAnnouncement.REASON_MISPLACED)
+        repair.header.stamp.sec = 70
+        probe.auctions.publish(repair)
+        probe.spin_until(lambda: False, 0.5)
+        send(cloud, lambda: len(probe.states) == 4)
+        assert 12 in [s.tile_id for s in probe.states[3].states]
+        taken_off = PlacementReport(tile_id=12, outcome=PlacementReport.OUTCOME_REMOVED, robot_name="robot2")
+        taken_off.header.stamp.sec = 80
+        probe.reports.publish(taken_off)
+        probe.spin_until(lambda: False, 0.5)
+        send(cloud, lambda: len(probe.states) == 5)
+        assert 12 not in [s.tile_id for s in probe.states[4].states]
         assert node.poll() is None
 
 

@@ -104,6 +104,15 @@ class Structure:
         return {i: tuple(sorted(c)) for i, c in children.items()}
 
     @cached_property
+    def resting_above(self) -> dict[int, frozenset[int]]:
+        """Tile id -> ids of the tiles resting on it, directly or through others."""
+        above: dict[int, frozenset[int]] = {}
+        for tile in reversed(topological_order(self.supports) or []):  # the top first
+            on_it = self.supported_by[tile]
+            above[tile] = frozenset(on_it).union(*(above[t] for t in on_it))
+        return above
+
+    @cached_property
     def precedence(self) -> nx.DiGraph:
         """The precedence DAG: an edge s -> t when tile s must be placed before tile t."""
         import networkx as nx

@@ -165,9 +165,14 @@ class Experiment:
             for node in role.nodes:
                 commands[process_name(role, robot, node, body=False)] = self.team_node_command(role, robot, node)
             for body in role.simulated_by:
-                commands[process_name(role, robot, body, body=True)] = [
-                    *self.team_node_command(role, robot, body), *self.testbed_arguments(setup)]
+                name = process_name(role, robot, body, body=True)
+                commands[name] = [*self.team_node_command(role, robot, body), *self.testbed_arguments(setup)]
+                if self.config.record_scans and body.executable == "sim_vi":
+                    commands[name] += ["-p", f"record_scans:={(self.trial_logs(setup) / (name + '_scans')).resolve()}"]
         return commands
+
+    def trial_logs(self, setup: TrialSetup) -> Path:
+        return self.config.report_dir / "logs" / f"trial_{setup.trial:02d}"
 
     def team_node_command(self, role: TeamRole, robot: str, node: TeamNode) -> list[str]:
         c = self.config
@@ -209,7 +214,7 @@ class Experiment:
         record = TrialRecord(trial=setup.trial, seed=setup.seed, removals_planned=setup.removals,
                              wrong_landings_planned=setup.misplacements + setup.wrong_tiles,
                              tile_types={i: t.type_name for i, t in self.structure.tiles.items()})
-        logs = self.config.report_dir / "logs" / f"trial_{setup.trial:02d}"
+        logs = self.trial_logs(setup)
         if logs.exists():
             shutil.rmtree(logs)
         observer = ExperimentObserver(record, self.config.robot_names)
@@ -346,6 +351,9 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser.add_argument("--inspection-only", action="store_true",
                         help="only scans find missing tiles, as in the paper (robots do not report absent supports)")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
+    parser.add_argument("--record-scans", action="store_true",
+                        help="write every VI robot's Kinect frames, true poses and truth to a rosbag2 in the trial's "
+                        "logs (<vi robot>_scans, for `ros2 run vi_node classify`)")
     parser.add_argument("--hosts", choices=["netns"], default=network_defaults.hosts,
                         help="netns: every robot, the base station and the world on a host of its own (needs root)")
     parser.add_argument("--link-loss", type=float, default=network_defaults.loss_percent, metavar="PCT",
@@ -383,7 +391,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
         report_dir=Path(args.report or f"{REPORTS}/{structure.stem}"), config_dir=Path(args.config).resolve(),
         baseline=not args.no_baseline, drop_probability=args.drop_probability, kill_robot=args.kill_robot,
         silent_robot=args.silent_robot, quiet=args.quiet, inspection=not args.no_inspection,
-        robots_find_missing=not args.inspection_only,
+        robots_find_missing=not args.inspection_only, record_scans=args.record_scans,
     )
 
 

@@ -37,6 +37,7 @@ class ExperimentConfig:
     quiet: bool = False
     inspection: bool = True  # run the VI robots' nodes (inspection and exploration)
     vi_robots: int = 1  # scanning robots
+    record_scans: bool = False  # every VI robot's Kinect frames to a rosbag2 in the trial's logs
     network: NetworkSettings = field(default_factory=NetworkSettings)  # one host, or a host per computer
 
     @property

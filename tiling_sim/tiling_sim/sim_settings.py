@@ -232,6 +232,9 @@ class ViBodySettings(BodySettings):
     intrinsics_size: list[int] = setting(  # noqa: RUF009 - a field() with a default_factory
         [640, 480], "Kinect depth image width, height (px).")
     robots_in_view: bool = setting(True, "The other robots (assembly and VI) appear in the Kinect's view (as boxes).")
+    record_scans: str = setting(
+        "", "Folder of a rosbag2 (MCAP) to write every Kinect frame to, with the camera's true pose, the other "
+        "robots' and what truly lay in the world (truth.json), for `ros2 run vi_node classify`; empty: none.")
 
     def check(self, source: str) -> None:
         super().check(source)

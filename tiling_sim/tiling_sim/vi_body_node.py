@@ -5,7 +5,8 @@ sleeping on simulated time) and is its Kinect: while the base stands, it takes a
 due (`scan_cycle`: every `scan_period` s, never before vi_node judged the last one), asks the world
 for a snapshot (`/sim/snapshot`: tiles in place, where the assembly robots truly stand, the time),
 renders it from its own true camera pose on a thread of its own (`kinect`) and publishes it on
-`camera/depth/points` here, on the robot: a 3.7 MB cloud never crosses the robots' network. It
+`camera/depth/points` here, on the robot: a 3.7 MB cloud never crosses the robots' network (and,
+with `record_scans`, writes it to a rosbag2 with its true poses and the world's truth). It
 tells the world how each frame fares (`/sim/scan_progress`), which paces the clock for the frame
 the explorer stopped for after an arrival (stopped while it renders, wall pace while judged). Of the
 verdicts on `/tile_states` it takes its own robot's (`robot_name`): with several VI robots, another's
@@ -48,6 +49,7 @@ from tiling_ros.stamps import stamp_from_seconds, stamp_to_nanoseconds
 from tiling_sim import sim_interface as sim
 from tiling_sim.kinect import ClutterBox, KinectScene, KinectSimulator, PinholeIntrinsics, camera_pose
 from tiling_sim.robot_motion import drive_time_to_pose
+from tiling_sim.scan_bag import ScanBagWriter
 from tiling_sim.scan_cycle import Frame, ScanCycle
 from tiling_sim.sim_settings import ViBodySettings
 
@@ -80,6 +82,12 @@ class SimVi(Node):
         self.cycle = ScanCycle(s.scan_period, s.verdict_timeout)
         self.lock = threading.Lock()  # the cycle, between the executor and the render thread
         self.render_pool = ThreadPoolExecutor(max_workers=1)
+        self.recording = ScanBagWriter(s.record_scans).__enter__() if s.record_scans else None
+        self.recording_lock = threading.Lock()  # frames from the render thread, poses from the executor
+        if self.recording is not None:  # the overhead poses as the team sees them (with their errors)
+            for robot in (self.name, *[r for r in (*s.team, *s.vi_team) if r != self.name]):
+                self.create_subscription(PoseStamped, f"/{robot}/overhead_pose",
+                                         lambda msg, robot=robot: self.record_pose(robot, msg), 10)
         self.time = sim.SimTime(self, on_tick=self.tick)
         self.world = self.create_client(SimSnapshot, sim.SNAPSHOT)
         self.motion_pub = self.create_publisher(SimMotion, sim.MOTION, SIM_MOTION)
@@ -158,12 +166,46 @@ class SimVi(Node):
                 self.cycle.published(frame, time.monotonic())
             self.cloud_pub.publish(cloud_to_msg(cloud, Header(stamp=snapshot.stamp, frame_id=OPTICAL_FRAME)))
             self.progress(SimScanProgress.PUBLISHED, frame)
+            if self.recording is not None:
+                self.record(cloud, snapshot, pose)
         except Exception as error:
             if self.context.ok():
                 self.get_logger().error(f"Kinect simulation failed: {error}")
                 with self.lock:
                     self.cycle.failed(frame)
                 self.progress(SimScanProgress.FAILED, frame)
+
+    def record_pose(self, robot: str, msg: PoseStamped) -> None:
+        o = msg.pose.orientation
+        yaw = rpy_from_rotation(rotation_from_quaternion(o.x, o.y, o.z, o.w))[2]
+        with self.recording_lock:
+            if self.recording is not None:
+                self.recording.write_pose(stamp_to_nanoseconds(msg.header.stamp), msg.pose.position.x,
+                                          msg.pose.position.y, yaw, robot="vi" if robot == self.name else robot)
+
+    def record(self, cloud: Any, snapshot: SimSnapshot.Response, pose: Pose2) -> None:
+        """Write the frame to the bag (its overhead poses are written as they come, see
+        `record_pose`), and to truth.json the camera's true pose, the other robots' true positions
+        and what lay where (on the render thread, after publishing)."""
+        stamp = stamp_to_nanoseconds(snapshot.stamp)
+        lying_wrong = [{"tile": int(t), "type": type_name, "x": p.position.x, "y": p.position.y,
+                        "yaw": rpy_from_rotation(rotation_from_quaternion(p.orientation.x, p.orientation.y,
+                                                                          p.orientation.z, p.orientation.w))[2]}
+                       for t, type_name, p in zip(snapshot.misplaced_tiles, snapshot.misplaced_types,
+                                                  snapshot.misplaced_poses, strict=True)]
+        with self.recording_lock:
+            if self.recording is not None:
+                self.recording.write_scan(stamp, cloud, {
+                    "robot": self.name, "pose": list(pose), "present": [int(t) for t in snapshot.present_tiles],
+                    "lying_wrong": lying_wrong, "robots": [[r.x, r.y] for r in snapshot.robots]})
+
+    def close_recording(self) -> None:
+        with self.recording_lock:
+            if self.recording is not None:
+                self.recording.set_truth(structure_file=self.settings.structure_file,
+                                         camera_xyz=list(self.mount[0]), camera_rpy=list(self.mount[1]))
+                self.recording.__exit__(None, None, None)
+                self.recording = None
 
     def scene(self, snapshot: SimSnapshot.Response) -> KinectScene:
         size = tuple(self.settings.robot_size)
@@ -209,7 +251,12 @@ class SimVi(Node):
 
 def main(args: list[str] | None = None) -> int:
     return run_node(SimVi, (ValueError, StructureError), args=args, error_prefix="sim_vi",
-                    on_shutdown=lambda node: node.render_pool.shutdown(wait=True, cancel_futures=True))
+                    on_shutdown=_stop_camera)
+
+
+def _stop_camera(node: SimVi) -> None:
+    node.render_pool.shutdown(wait=True, cancel_futures=True)
+    node.close_recording()  # after the last frame: the bag ends with whole frames
 
 
 if __name__ == "__main__":

@@ -11,7 +11,10 @@ verdict also needs the latest view not to be split: when a scan's pixels of the 
 the older views do not vouch for it and it is undetermined until a view settles it. A scan that
 glimpses a decided tile with too few pixels to lean either way leaves it as it is: its stale decision
 is not reported as a new observation. A tile that is (re)placed starts afresh. A tile found
-misplaced stays so until a scan sees it present and in place.
+misplaced stays so until a scan sees it present and in place; a later scan that does not flag it
+itself reports it with the counts of the scan that did, so that the flag is not taken for a new,
+independent observation (`scan_freshness`): one misaligned scan flagged an octagon moved 3.6 cm, and
+every later view repeated it until the auction node had it confirmed from two camera positions.
 
 Paper mode fuses by its own rules: the latest scan that resolved a tile (present or missing)
 decides it.
@@ -41,6 +44,7 @@ class FusedTile:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # fitted x, y (m), yaw (rad) when misplaced
     residual: float = 0.0
     largest_view: int = 0  # most pixels of the tile judged in one scan
+    flagged_counts: tuple[int, int, int] | None = None  # (agree, see-through, scans) reported when last flagged
 
 
 @dataclass
@@ -105,7 +109,7 @@ class TileFusion:
                 if flagged:
                     fused.misplaced, fused.offset, fused.residual = True, offset, residual
                 elif scan_state == TileState.PRESENT:  # seen in place: whatever moved it was put right
-                    fused.misplaced, fused.offset = False, (0.0, 0.0, 0.0)
+                    fused.misplaced, fused.offset, fused.flagged_counts = False, (0.0, 0.0, 0.0), None
             self.tiles[tile_id] = fused
         return {t: self.tiles[t] for t in ids}
 
@@ -171,12 +175,18 @@ def fuse_scan(fusion: TileFusion, result: ScanResult) -> ScanResult:
     if not result.ok or result.evidence is None or result.evidence_states is None:
         return result
     fused = fusion.add(result.tile_ids, result.evidence, result.evidence_states, result.misplacement)
+    flagged_now = {t for t, (flagged, _, _) in (result.misplacement or {}).items() if flagged}
     tiles: list[TileResult] = []
     single = result.by_id()
     for tile_id in result.tile_ids:
         entry = fused[tile_id]
         e = entry.evidence
         agree, through, virtual = int(e.agree[0]), int(e.see_through[0]), int(e.virtual[0])
+        scans = max(entry.scans, 1)
+        if entry.misplaced and tile_id not in flagged_now and entry.flagged_counts is not None:
+            agree, through, scans = entry.flagged_counts  # the flag of an older scan, repeated
+        elif entry.misplaced:
+            entry.flagged_counts = (agree, through, scans)
         if fusion.paper_rules:
             ratio = min(agree / virtual, virtual / agree) if agree and virtual else 0.0
         else:
@@ -194,7 +204,7 @@ def fuse_scan(fusion: TileFusion, result: ScanResult) -> ScanResult:
                 no_return=int(e.no_return[0]),
                 judged=int(e.judged[0]),
                 offset=entry.offset if entry.misplaced else (0.0, 0.0, 0.0),
-                scans=max(entry.scans, 1),
+                scans=scans,
             )
         )
     return replace(result, tiles=tiles, scan_count=fusion.scans)

@@ -104,15 +104,20 @@ class PlacementContext:
 
 
 def confirmed_by_pixels(
-    fit: TileFit, agree: int, disagree: int, settings: MisplacementSettings, blank: int = 0
+    fit: TileFit, agree: int, see_through: int, in_front: int, settings: MisplacementSettings, blank: int = 0
 ) -> bool:
     """Whether a refit that says "moved" is borne out by the tile's pixels: a tile that moved has left
-    some of its expected surface (see-through) or stands in front of it (`disagree` pixels). A shift
+    some of its expected surface (see-through) and may stand in front of it (in front). A shift
     of 1.5 cm or more shows on a good share of its pixels, a turn of a small tile on a few corners.
     And it still covers part of its place (`agree`): a tile that is gone leaves only the surfaces
-    behind it and blanks (`blank`), which a refit can mistake for the tile's faces slipped aside."""
-    if not fit.misplaced:
+    behind it and blanks (`blank`), which a refit can mistake for the tile's faces slipped aside.
+    Something in front of it with nothing seen through is no sign that it left its place: a wrong
+    tile lying on it shows so (an octagon in the place of the long rectangle on a square made the
+    square look turned 33 degrees); that refit stands only if its fitted pose is borne out
+    (`pose_hypotheses`)."""
+    if not fit.misplaced or see_through == 0:
         return False
+    disagree = see_through + in_front
     if agree < max(1.0, settings.kept_share * (agree + disagree + blank)):
         return False
     shifted = math.hypot(fit.offset[0], fit.offset[1]) >= 0.6 * settings.shift

@@ -12,7 +12,8 @@ share the topic), `/tile_markers` (tiles coloured by state, for RViz) and
 
 S_a: the tiles claimed placed (PlacementReport OUTCOME_PLACED) of the structure on `/structure`;
 until a structure / a report arrives, the `structure_file` and `expected_tiles` parameters. A tile
-announced in an auction leaves S_a until a new placement report for it arrives. Each scan is paired
+announced in an auction leaves S_a until a new placement report for it arrives; a tile announced for
+repair stays until its robot reports it taken off. Each scan is paired
 with the overhead pose nearest in time; only the latest scan is kept while one is processed (the
 camera is faster than the inspection can be on a bad day: old scans are dropped, not queued).
 """
@@ -214,6 +215,10 @@ class ViNode(Node):
             self.expected_changed = True
 
     def _on_announcement(self, msg: AuctionAnnouncement) -> None:
+        if msg.reason == AuctionAnnouncement.REASON_MISPLACED:
+            # a repair: the wrong tile lies there until its robot reports it taken off, and it still
+            # hides what it hid (withdrawn, its supports' faces under it looked misplaced)
+            return
         tile_id = int(msg.tile_id)
         with self.news_lock:
             self.withdrawn[tile_id] = max(stamp_to_nanoseconds(msg.header.stamp), self.placed.get(tile_id, -1))

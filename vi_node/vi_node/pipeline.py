@@ -676,7 +676,8 @@ class InspectionPipeline:
             misplaced = confirmed_by_pixels(
                 fit,
                 agree=tile.physical,
-                disagree=tile.see_through + tile.in_front,
+                see_through=tile.see_through,
+                in_front=tile.in_front,
                 blank=tile.blank,
                 settings=self.misplacement_settings,
             ) or (fit.misplaced and self._fitted_pose_explains(scan, pose, index, fit.offset, tile.physical))
