@@ -67,6 +67,7 @@ class AssemblySettings:
     pick_time: float = setting(_TIMES.pick_time, "Time model: s to find and grasp a tile at its cache.")
     place_time: float = setting(_TIMES.place_time, "Time model: s to place a tile.")
     travel_speed: float = setting(_TIMES.travel_speed, "Time model: mean base speed between cache and structure, m/s.")
+    cache_standoff: float = setting(_TIMES.cache_standoff, "Time model: m a base stops short of a parts cache.")
     weight_supported: float = setting(30.0, "A in b = w - A*c + B*d: s per own tile the missing one supports.")
     weight_distance: float = setting(10.0, "B in b = w - A*c + B*d: s per metre from own cache to the tile.")
     bid_in_auctions: bool = setting(True, "Take part in auctions; false: never bid (the robot keeps its own task).")
@@ -90,7 +91,8 @@ class AssemblyNode(Node):
         settings = self.settings = declare_settings(self, AssemblySettings)
         self.robot_name = self._robot_name()
         self.time_model = TimeModel(
-            pick_time=settings.pick_time, place_time=settings.place_time, travel_speed=settings.travel_speed
+            pick_time=settings.pick_time, place_time=settings.place_time, travel_speed=settings.travel_speed,
+            cache_standoff=settings.cache_standoff,
         )
         self.weight_supported = float(settings.weight_supported)
         self.weight_distance = float(settings.weight_distance)

@@ -53,6 +53,8 @@ class PlannerParameters:
         _DEFAULT_TIMES.place_time, "Time to lower, release and retract a tile at the structure (s)")
     travel_speed: float = setting(
         _DEFAULT_TIMES.travel_speed, "Mean speed of a robot base between a cache and the structure (m/s)")
+    cache_standoff: float = setting(
+        _DEFAULT_TIMES.cache_standoff, "How far short of a parts cache a robot base stops, its arm's reach (m)")
     type_place_time: Mapping[str, float] = setting(
         {}, "Place time of a tile of this type (s); types not listed take place_time")
 
@@ -76,6 +78,7 @@ class PlannerParameters:
             pick_time=self.pick_time,
             place_time=self.place_time,
             travel_speed=self.travel_speed,
+            cache_standoff=self.cache_standoff,
             type_place_time=dict(self.type_place_time),
         )
 
@@ -109,6 +112,7 @@ _FIELDS = {
     "pick_time": float,
     "place_time": float,
     "travel_speed": float,
+    "cache_standoff": float,
 }
 
 

@@ -18,7 +18,7 @@ from planner_node.structure_generators import pyramid, random_cluster
 from tiling_assembly.structure_file import load_structure, parse_structure
 from tiling_assembly.time_model import TimeModel
 
-TIMES = TimeModel(pick_time=5.0, place_time=10.0, travel_speed=0.5)
+TIMES = TimeModel(pick_time=5.0, place_time=10.0, travel_speed=0.5, cache_standoff=0.0)  # trips centre to centre
 
 
 def _box(length: float, width: float, height: float) -> dict:

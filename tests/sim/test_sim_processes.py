@@ -169,9 +169,10 @@ def test_a_placement_has_the_old_phases_duration_result_and_events(sim: Simulato
     assert result.duration == pytest.approx(planned, abs=PHASE_END_ROUNDING * len(phases))
     kinds = [(e["event"], e["tile"]) for e in sim.events if e["event"] in PLACEMENT_EVENTS]
     assert kinds == [("place_started", 1), ("placed", 1)]
-    # the world shows the robot where it truly stands: at the cache while it drives off with the tile
+    # the world shows the robot where it truly stands: beside the cache while it drives off with the tile
     snapshot = sim.call(seen[3][1][0])
-    assert any(math.dist((p.x, p.y), cache) < 1e-6 for p in snapshot.robots), snapshot.robots
+    assert any(math.dist((p.x, p.y), phases[2].end) < 1e-6 for p in snapshot.robots), snapshot.robots
+    assert math.dist(phases[2].end, cache) == pytest.approx(motion.approach_distance)
     assert list(snapshot.present_tiles) == []  # tile 1 goes down at the end of the placing phase
     after = sim.call(sim.snapshot.call_async(SimSnapshot.Request()))
     assert 1 in after.present_tiles

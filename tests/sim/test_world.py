@@ -63,7 +63,9 @@ def test_placement_phases_add_up() -> None:
     assert [p.phase for p in phases] == [1, 2, 3, 4, 5, 6]
     target = approach_point(model, (0.0, 0.5), (1.0, 0.0))
     assert math.dist(target, (0.0, 0.5)) == pytest.approx(0.25)
-    expected = 1.0 / 0.2 + 1 + 5 + math.dist((1.0, 0.0), target) / 0.2 + 8 + 2
+    at_cache = (0.75, 0.0)  # an arm's reach short of the cache, on the side the robot comes from
+    assert phases[0].end == pytest.approx(at_cache) and phases[2].end == pytest.approx(at_cache)
+    expected = 0.75 / 0.2 + 1 + 5 + math.dist(at_cache, target) / 0.2 + 8 + 2
     assert sum(p.duration for p in phases) == pytest.approx(expected)
     assert phases[-1].end == target
 
@@ -263,5 +265,6 @@ def test_removal_phases_go_to_the_tile_then_to_the_drop_off() -> None:
     assert [p.phase for p in phases] == [1, 2, 3, 4, 5, 6]
     at_tile = phases[0].end
     assert math.isclose(math.dist(at_tile, (0.0, 0.0)), model.approach_distance)
-    assert phases[3].end == (-1.0, 0.0) and phases[5].end == (-1.0, 0.0)
+    beside_drop_off = (-1.0 + model.approach_distance, 0.0)  # coming from the tile's side
+    assert phases[3].end == pytest.approx(beside_drop_off) and phases[5].end == pytest.approx(beside_drop_off)
     assert math.isclose(phases[0].duration, math.dist((1.0, 0.0), at_tile) / model.drive_speed)

@@ -39,7 +39,7 @@ from tiling_ros.qos import SIM_MOTION
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_seconds, stamp_to_seconds
 from tiling_sim import sim_interface as sim
-from tiling_sim.robot_motion import Phase, Point2, Polygon, placement_phases, removal_phases
+from tiling_sim.robot_motion import Phase, Point2, Polygon, approach_point, placement_phases, removal_phases
 from tiling_sim.sim_settings import RobotBodySettings
 from tiling_sim.standing_room import alternative_spot
 
@@ -126,7 +126,8 @@ class SimRobot(Node):
         if answer.outcome != SimPlace.Response.OK:
             return _finish(handle.abort, Result.FAILED_PRECONDITION, answer.reason), start, at
         tile_xy, cache = (goal.pose.pose.position.x, goal.pose.pose.position.y), (goal.cache.x, goal.cache.y)
-        cache_stop, at = await self.make_room(cache, cache, self.position, at)
+        cache_stop, at = await self.make_room(approach_point(self.motion, cache, self.position), cache,
+                                              self.position, at)
         phases = placement_phases(self.motion, self.position, cache, tile_xy, self.footprints, cache_stop)
         for k in range(len(phases)):
             if phases[k].phase == PlaceTile.Feedback.DRIVING_TO_STRUCTURE:
@@ -171,7 +172,8 @@ class SimRobot(Node):
         phases = removal_phases(self.motion, self.position, tile_xy, drop_off, self.footprints, target)
         for k in range(len(phases)):
             if phases[k].phase == RemoveTile.Feedback.DRIVING_TO_DROP_OFF:
-                drop_stop, at = await self.make_room(drop_off, drop_off, tile_xy, at)
+                drop_stop, at = await self.make_room(approach_point(self.motion, drop_off, self.position), drop_off,
+                                                     tile_xy, at)
                 phases = removal_phases(self.motion, self.position, tile_xy, drop_off, self.footprints, target,
                                         drop_stop)
             phase = phases[k]

@@ -4,7 +4,9 @@ the tile's type, finds and picks the tile, drives to the structure and places it
 A placement is a sequence of timed phases from the robot's current position; durations follow
 distance and speed, plus fixed pick and place times, all from `config/tiling_sim.yaml`. The robot
 stands off the tile by `approach_distance` (the arm's reach) on the side facing its cache, or further
-out on that side when its base would otherwise stand on other tiles of the structure.
+out on that side when its base would otherwise stand on other tiles of the structure. It stands off
+the parts cache by as much, on the side it comes from (the real M3 stops `pick_standoff` from it):
+several robots can pick from one cache at once, from different sides (`standing_room`).
 """
 
 from __future__ import annotations
@@ -107,10 +109,10 @@ def placement_phases(
     model: MotionModel, start: Point2, cache: Point2, tile_xy: Point2, obstacles: Sequence[Polygon] = (),
     cache_stop: Point2 | None = None, target: Point2 | None = None,
 ) -> list[Phase]:
-    """The timed phases of one placement (phase numbers of PlaceTile.Feedback); the base stops at
-    the cache (or at `cache_stop` beside it) and beside the tile clear of `obstacles` (see
-    `approach_point`; or at `target`)."""
-    at_cache = cache_stop or cache
+    """The timed phases of one placement (phase numbers of PlaceTile.Feedback); the base stops
+    beside the cache on the side it comes from (or at `cache_stop`) and beside the tile clear of
+    `obstacles` (see `approach_point`; or at `target`)."""
+    at_cache = cache_stop or approach_point(model, cache, start)
     target = target or approach_point(model, tile_xy, cache, obstacles)
     return [
         Phase(1, _drive_time(model, start, at_cache), at_cache),  # DRIVING_TO_CACHE
@@ -127,10 +129,10 @@ def removal_phases(
     target: Point2 | None = None, drop_stop: Point2 | None = None,
 ) -> list[Phase]:
     """The timed phases of taking a tile off the structure (phase numbers of RemoveTile.Feedback):
-    a placement run backwards, from the structure (or `target`) to the drop-off (or `drop_stop`
-    beside it), with the same arm times."""
+    a placement run backwards, from the structure (or `target`) to beside the drop-off (or
+    `drop_stop`), with the same arm times."""
     target = target or approach_point(model, tile_xy, drop_off, obstacles)
-    at_drop = drop_stop or drop_off
+    at_drop = drop_stop or approach_point(model, drop_off, target)
     return [
         Phase(1, _drive_time(model, start, target), target),  # DRIVING_TO_STRUCTURE
         Phase(2, model.locate_time, target),  # LOCATING_TILE
