@@ -85,3 +85,16 @@ def test_a_config_folder_without_a_team_file_uses_the_installed_one(tmp_path: Pa
     assert team_file(tmp_path) == REPO / "install/tiling_assembly/share/tiling_assembly/config/team.yaml"
     (tmp_path / "team.yaml").write_text("")
     assert team_file(tmp_path) == tmp_path / "team.yaml"
+
+
+def test_recording_scans_asks_each_vi_robots_camera_for_a_bag_in_the_trials_logs(tmp_path: Path) -> None:
+    from tiling_sim.experiment import Experiment, ExperimentConfig, TrialSetup, parse_args
+
+    config = parse_args(["--structure", str(REPO / "config/structures/paper_14.yaml"), "--vi-robots", "2",
+                         "--record-scans", "--report", str(tmp_path / "report"), "--config", str(REPO / "config")])
+    assert isinstance(config, ExperimentConfig) and config.record_scans
+    commands = Experiment(config).node_commands(TrialSetup(3, 1, 0, False))
+    bags = {name: a.removeprefix("record_scans:=") for name, argv in commands.items() for a in argv
+            if a.startswith("record_scans:=")}
+    logs = tmp_path / "report" / "logs" / "trial_03"
+    assert bags == {"vi1_body": str(logs / "vi1_body_scans"), "vi2_body": str(logs / "vi2_body_scans")}

@@ -86,6 +86,18 @@ def test_liveness() -> None:
     assert live.alive() == ["robot1", "robot2"]
 
 
+def test_time_the_monitor_did_not_run_does_not_count_against_the_robots() -> None:
+    live = Liveness(timeout=1.0, stall=0.5)
+    live.heard("robot1", 0.0)
+    live.heard("robot2", 0.0)
+    for now in (0.2, 0.4, 0.6):
+        assert live.newly_lost(now) == []
+    assert live.newly_lost(2.0) == []  # the monitor stalled 1.4 s: its queue may hold their heartbeats
+    live.heard("robot1", 2.01)  # ... and so it did for robot1; robot2 is silent
+    # robot2 was silent 0.6 s before the stall: lost once 0.4 s more of the monitor's own time pass
+    assert [live.newly_lost(t) for t in (2.2, 2.4, 2.6, 2.8)] == [[], [], ["robot2"], []]
+
+
 def test_repeated_fused_evidence_is_not_a_new_observation() -> None:
     repeats = RepeatFilter()
     assert repeats.fresh({4: (1, 300, 0), 5: (1, 0, 80)}) == {4, 5}

@@ -178,3 +178,17 @@ def test_the_local_connectivity_check_never_splits_a_region() -> None:
         answers.append(answer == expected)
     # the search gives up (says no) only past its budget, which these small regions rarely reach
     assert sum(answers) >= 0.95 * len(answers)
+
+
+def test_a_trip_starts_an_arms_reach_short_of_the_cache() -> None:
+    structure = arch()
+    paper = TimeModel(cache_standoff=0.0)
+    ours = TimeModel()  # the base stops 0.25 m short of the cache, as the simulated and the real M3 do
+    for tile in structure.tiles:
+        d = paper.cache_distance(structure, tile)
+        assert paper.travel_time(structure, tile) == pytest.approx(d / 0.15)
+        assert ours.travel_time(structure, tile) == pytest.approx((d - 0.25) / 0.15)
+        assert ours.tile_cost(structure, tile) == pytest.approx(paper.tile_cost(structure, tile) - 2 * 0.25 / 0.15)
+    assert TimeModel(cache_standoff=5.0).travel_time(structure, 1) == 0.0  # never a negative trip
+    with pytest.raises(ValueError, match="cache_standoff"):
+        TimeModel(cache_standoff=-0.1)

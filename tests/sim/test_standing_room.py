@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from tiling_sim.robot_motion import MotionModel
+from tiling_sim.robot_motion import MotionModel, approach_point
 from tiling_sim.standing_room import StandingRoom, alternative_spot, robot_boxes
 
 BASE = MotionModel(base_size=(0.33, 0.33), base_clearance=0.03, approach_distance=0.25)
@@ -50,6 +50,20 @@ def test_another_stop_is_found_round_a_tile_within_reach_but_not_at_a_taken_cach
     beside = alternative_spot(BASE, tile, (1.0, 0.0), preferred, robots=[preferred], clearance=0.05)
     assert beside is not None and math.dist(beside, tile) <= 0.25 + 0.1 + 1e-9
     assert max(abs(beside[0] - 0.25), abs(beside[1])) >= 0.38 - 1e-9
+
+
+def test_three_robots_pick_from_one_cache_at_once_and_a_fourth_waits() -> None:
+    """Bases stop an arm's reach short of the cache (robot_motion.placement_phases): the second and
+    third stop round it, clear of the others; with three there, a fourth finds no stop in reach."""
+    cache, structure = (1.2, -0.8), (0.0, 0.0)  # pyramid_91's slab cache: every robot comes from the structure
+    taken = [approach_point(BASE, cache, structure)]
+    assert math.dist(taken[0], cache) == 0.25
+    for _ in range(2):
+        spot = alternative_spot(BASE, cache, structure, taken[0], robots=taken, clearance=0.05)
+        assert spot is not None and math.dist(spot, cache) <= 0.25 + 0.1 + 1e-9
+        assert all(max(abs(spot[0] - x), abs(spot[1] - y)) >= 0.38 - 1e-9 for x, y in taken)
+        taken.append(spot)
+    assert alternative_spot(BASE, cache, structure, taken[0], robots=taken, clearance=0.05) is None
 
 
 def test_no_stop_within_reach_means_waiting() -> None:
