@@ -292,8 +292,8 @@ class AuctionNode(Node):
         for tile_id, wrong in self.detector.deferred.items():
             if tile_id in called_wrong and self.told_deferred.get(tile_id) != wrong:
                 self.told_deferred[tile_id] = wrong
-                self.decide(f"tile {tile_id} looks wrong or missing, but tile {wrong} on it lies wrong: "
-                            f"judged again once that tile is repaired")
+                self.decide(f"tile {tile_id} looks wrong or missing, but tile {wrong} on it lies wrong (or may): "
+                            f"judged again once that tile is judged or repaired")
 
     def on_plan(self, msg: AssemblyPlan) -> None:
         self.plan_revision = max(self.plan_revision, msg.revision)
