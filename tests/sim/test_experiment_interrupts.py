@@ -51,3 +51,38 @@ def test_the_same_error_without_a_signal_is_reported_as_an_error(
                             "--trials", "1", "--quiet"])
     assert code == 2
     assert capsys.readouterr().err.strip() == "error: something else broke"
+
+
+HANGING_SHUTDOWN = """
+import sys, threading
+from tiling_assembly import interrupts
+from tiling_sim import experiment
+experiment.raise_keyboard_interrupt_on_signals = lambda: None
+experiment.isolate = lambda domain: None
+experiment.rclpy.init = lambda **_: None
+experiment.rclpy.try_shutdown = lambda **_: threading.Event().wait()  # a locked shared-memory port
+experiment.ROS_SHUTDOWN_PATIENCE = 1.0
+def interrupted(self):
+    raise KeyboardInterrupt
+experiment.Experiment.run = interrupted
+sys.exit(experiment.main(sys.argv[1:]))
+"""
+
+
+def test_the_experiment_ends_with_its_exit_code_when_ros_never_shuts_down(tmp_path: Path) -> None:
+    """Stopping 8 robots and 2 VI robots once left the experiment itself blocked in Fast DDS's
+    teardown (a killed node's shared-memory port stayed locked): it exits anyway, with its code."""
+    import subprocess
+    import sys
+    import time
+
+    from conftest import REPO
+
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, "-c", HANGING_SHUTDOWN, "--structure", str(STRUCTURES / "paper_14.yaml"),
+                           "--report", str(tmp_path), "--trials", "1", "--quiet"],
+                          cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 130, done.stderr
+    assert "interrupted: every node was stopped" in done.stderr
+    assert "experiment: ROS did not shut down within 1 s; exiting without it" in done.stderr
+    assert time.monotonic() - started < 30

@@ -37,6 +37,7 @@ from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.team import TeamFileError, TeamNode, TeamRole, load_team
 from tiling_assembly.time_model import TimeModel
+from tiling_ros.spinning import exit_unless_done_within
 from tiling_sim import report
 from tiling_sim.experiment_observer import ExperimentObserver
 from tiling_sim.experiment_result import ExperimentConfig, ExperimentResult
@@ -48,6 +49,7 @@ from tiling_sim.trial_record import TrialRecord, detection_stats
 from tiling_sim.virtual_hosts import VirtualHostsError
 
 HEAVY_NODES = {"sim_vi", "vi_node", "vi_explorer"}  # ray casting, point clouds (the world is light: the clock)
+ROS_SHUTDOWN_PATIENCE = 10.0  # s this process's own ROS teardown gets once every node has stopped
 
 
 def is_heavy(process: str, vi_robots: list[str]) -> bool:
@@ -401,41 +403,50 @@ def main(argv: list[str] | None = None) -> int:
     domain, _lock = claim_domain_id()
     isolate(domain)
     network = None
+    code = 2
     try:
         network = TeamNetwork.build(config.network, config.robot_names, f"{os.getpid()}",
                                     dds_profile=str(config.config_dir / "fastdds_wifi.xml"),
                                     vi_robots=config.vi_robot_names)
         rclpy.init(args=None)
-        experiment = Experiment(config, network)
-        config.report_dir.mkdir(parents=True, exist_ok=True)
-        print(report.header(config, experiment.structure), flush=True)
-        if not config.quiet and network.hosts is None:
-            print(f"ROS_DOMAIN_ID={domain} (private, this host only); watch with: ROS_DOMAIN_ID={domain} "
-                  "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ros2 topic echo /auction/decisions", flush=True)
-        elif not config.quiet:
-            print(network.describe(), flush=True)
-        result = experiment.run()
-        print(report.summary_text(result), flush=True)
-        path = report.write(result)
-        print(f"Report: {path}")
-        return 0 if all(r.complete() for r in result.records) else 1
+        code = run_experiment(config, network, domain)
     except StructureError as error:
         print(f"error: {error}", file=sys.stderr)
-        return 2
     except VirtualHostsError as error:
         print(f"error: --hosts netns: {error}", file=sys.stderr)
-        return 2
     except RuntimeError as error:
         if signalled.is_set():  # the Ctrl-C itself: pybind11 turns a KeyboardInterrupt raised while it
-            return _interrupted()  # converts a call's arguments into "Unable to convert call argument"
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+            code = _interrupted()  # converts a call's arguments into "Unable to convert call argument"
+        else:
+            print(f"error: {error}", file=sys.stderr)
     except KeyboardInterrupt:
-        return _interrupted()
+        code = _interrupted()
     finally:
-        rclpy.try_shutdown()
         if network is not None:
             network.close()
+        # a node killed mid-message can leave a Fast DDS shared-memory port locked for good: this
+        # process's own teardown then blocks on it (seen after stopping 8 robots and 2 VI robots)
+        with exit_unless_done_within(ROS_SHUTDOWN_PATIENCE, f"experiment: ROS did not shut down within "
+                                     f"{ROS_SHUTDOWN_PATIENCE:g} s; exiting without it", exit_code=code):
+            rclpy.try_shutdown()
+    return code
+
+
+def run_experiment(config: ExperimentConfig, network: TeamNetwork, domain: int) -> int:
+    """The trials and their report; the exit code (0: every trial completed)."""
+    experiment = Experiment(config, network)
+    config.report_dir.mkdir(parents=True, exist_ok=True)
+    print(report.header(config, experiment.structure), flush=True)
+    if not config.quiet and network.hosts is None:
+        print(f"ROS_DOMAIN_ID={domain} (private, this host only); watch with: ROS_DOMAIN_ID={domain} "
+              "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ros2 topic echo /auction/decisions", flush=True)
+    elif not config.quiet:
+        print(network.describe(), flush=True)
+    result = experiment.run()
+    print(report.summary_text(result), flush=True)
+    path = report.write(result)
+    print(f"Report: {path}")
+    return 0 if all(r.complete() for r in result.records) else 1
 
 
 def _interrupted() -> int:
