@@ -326,3 +326,11 @@ def test_recorded_kinect_frames_replay_with_their_poses_and_the_truth(tmp_path: 
         assert replay.poses.nearest(scan.stamp_ns, 100_000_000) is not None  # the overhead pose of that time
     assert len(told["pose"]) == 3 and told["robots"] and all(len(xy) == 2 for xy in told["robots"])
     assert truth["structure_file"].endswith("paper_14.yaml")
+
+
+def test_a_recording_folder_that_exists_is_one_line_and_exit_code_2(tmp_path: Path) -> None:
+    command = [*_command("sim_vi", "/vi"), "-p", f"record_scans:={tmp_path}"]
+    result = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.strip().splitlines() == [
+        f"sim_vi: record_scans: {tmp_path} exists; a recording needs a new folder"]

@@ -20,6 +20,7 @@ import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -82,6 +83,8 @@ class SimVi(Node):
         self.cycle = ScanCycle(s.scan_period, s.verdict_timeout)
         self.lock = threading.Lock()  # the cycle, between the executor and the render thread
         self.render_pool = ThreadPoolExecutor(max_workers=1)
+        if s.record_scans and Path(s.record_scans).exists():
+            raise ValueError(f"record_scans: {s.record_scans} exists; a recording needs a new folder")
         self.recording = ScanBagWriter(s.record_scans).__enter__() if s.record_scans else None
         self.recording_lock = threading.Lock()  # frames from the render thread, poses from the executor
         if self.recording is not None:  # the overhead poses as the team sees them (with their errors)
