@@ -99,12 +99,19 @@ def _repair_connectivity(graph: AssemblyGraph, owner: IntArray, n_robots: int) -
             cross = onto_main
         pairs = np.unique(np.column_stack([label[rows[cross]], owner[cols[cross]]]), axis=0)
         loads = np.bincount(owner, weights=graph.cost, minlength=n_robots)
-        taker: dict[int, int] = {}
+        touching: dict[int, list[int]] = {}
         for frag, other in pairs.tolist():
-            if frag not in taker or loads[other] < loads[taker[frag]]:
-                taker[frag] = other
-        if not taker:
+            touching.setdefault(frag, []).append(other)
+        if not touching:
             break  # only separate pieces of the structure are left: nothing to attach them to
+        # heaviest fragments first, each to the region lightest at that moment, so that fragments
+        # handed out in one round do not all pile onto the same light region
+        taker: dict[int, int] = {}
+        for frag in sorted(touching, key=lambda f: (-work[f], f)):
+            other = min(touching[frag], key=lambda r: (loads[r], r))
+            taker[frag] = other
+            loads[other] += work[frag]
+            loads[region_of[frag]] -= work[frag]
         region_map = region_of.copy()
         for frag, other in taker.items():
             region_map[frag] = other

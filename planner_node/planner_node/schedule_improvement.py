@@ -9,7 +9,8 @@ simulation (`schedule_sim`) as the objective (makespan, then total waiting):
    `layer_partition`) is sequenced with every policy of `sequencing` (the paper's maximum slack,
    critical-path list scheduling, and the same with robots helping others when the helped robot
    would finish later, or whenever the helper would wait); the plan that finishes first is the
-   start, the most local one among equals;
+   start, the most local one among equals. A plan within `GOOD_ENOUGH` of the lower bound ends the
+   trying at once (on 10,000 tiles each try costs about 0.06 s);
 2. local search, while the plan is more than `GOOD_ENOUGH` above the lower bound and time is left:
    take the robot that finishes last and try, one at a time, (a) handing one of its border tiles to
    a touching robot that finishes earlier and (b) handing a tile it waits for to the robot whose
@@ -76,16 +77,22 @@ def best_sequencing(
     n_robots: int,
     distance: FloatArray,
     policies: tuple = ALL_POLICIES,
-) -> tuple[Sequencing, SimulationResult, str]:
-    """Orders by every policy, simulated; the ones that finish first (then wait least)."""
+    good_enough: float = 0.0,
+) -> tuple[Sequencing, SimulationResult, str, int]:
+    """Orders by the policies, simulated, until one finishes within `good_enough`; the ones that
+    finish first (then wait least), and how many policies were tried."""
     best = None
+    tried = 0
     for name, policy, margin in policies:
         sequencing = sequence_tiles(graph, owner, n_robots, policy, distance, margin)
         result = sequencing.schedule if sequencing.schedule is not None else simulate_orders(graph, sequencing.orders)
+        tried += 1
         if best is None or _better(result, best[1]):
             best = (sequencing, result, name)
+        if best[1].makespan <= good_enough:
+            break
     assert best is not None
-    return best
+    return (*best, tried)
 
 
 def _candidate_moves(
@@ -139,13 +146,18 @@ def improve_plan(
     search_policies = SEARCH_POLICIES if help_neighbours else SEARCH_POLICIES[:1]
     deadline = time.perf_counter() + time_limit
     best = None
+    evaluations = 0
     for name, candidate in partitions.items():
-        sequencing, result, policy = best_sequencing(graph, candidate, n_robots, distance, start_policies)
+        sequencing, result, policy, sequenced = best_sequencing(
+            graph, candidate, n_robots, distance, start_policies, good_enough
+        )
+        evaluations += sequenced
         if best is None or _better(result, best[1]):
             best = (sequencing, result, policy, name, candidate)
+        if best[1].makespan <= good_enough:
+            break  # the later starts cannot be much better: they are tried for harder structures
     assert best is not None
     sequencing, result, policy, start, partition = best
-    evaluations = len(start_policies) * len(partitions)
     moves = 0
     regions = RegionBorders(graph, partition, n_robots)
     while result.makespan > good_enough and time.perf_counter() < deadline:
@@ -161,8 +173,8 @@ def improve_plan(
             tried.add((tile, taker))
             regions.move(tile, taker)
             trial_owner = np.array(regions.owner, dtype=np.int64)
-            trial = best_sequencing(graph, trial_owner, n_robots, distance, search_policies)
-            evaluations += len(search_policies)
+            *trial, sequenced = best_sequencing(graph, trial_owner, n_robots, distance, search_policies)
+            evaluations += sequenced
             if _better(trial[1], result):
                 sequencing, result, policy = trial
                 moves += 1

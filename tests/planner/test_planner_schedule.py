@@ -180,6 +180,24 @@ def test_the_local_connectivity_check_never_splits_a_region() -> None:
     assert sum(answers) >= 0.95 * len(answers)
 
 
+def test_a_tile_refused_leave_is_asked_again_once_a_neighbour_has_moved() -> None:
+    # four blocks in a row: the contact graph is the path 0-1-2-3
+    structure = parse_structure(
+        {
+            "tile_types": {"block": _box(0.1, 0.1, 0.05)},
+            "tiles": [{"id": i + 1, "type": "block", "position": [0.1 * i, 0.0, 0.0]} for i in range(4)],
+            "caches": {"block": [0.0, -1.0]},
+        },
+        "row",
+    )
+    graph = build_graph(structure, TimeModel())
+    regions = RegionBorders(graph, np.array([0, 0, 0, 1]), 2)
+    assert not regions.can_leave(1)  # tiles 0 and 2 would be cut apart
+    assert not regions.can_leave(1)  # remembered
+    regions.move(0, 1)
+    assert regions.can_leave(1)  # its neighbour left: only tile 2 is left beside it
+
+
 def test_a_trip_starts_an_arms_reach_short_of_the_cache() -> None:
     structure = arch()
     paper = TimeModel(cache_standoff=0.0)
