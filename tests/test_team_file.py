@@ -98,3 +98,15 @@ def test_recording_scans_asks_each_vi_robots_camera_for_a_bag_in_the_trials_logs
             if a.startswith("record_scans:=")}
     logs = tmp_path / "report" / "logs" / "trial_03"
     assert bags == {"vi1_body": str(logs / "vi1_body_scans"), "vi2_body": str(logs / "vi2_body_scans")}
+
+
+def test_a_trial_may_be_given_its_own_wall_clock_limit(tmp_path: Path) -> None:
+    from tiling_sim.experiment import Experiment, parse_args
+
+    common = ["--structure", str(REPO / "config/structures/paper_14.yaml"), "--report", str(tmp_path),
+              "--config", str(REPO / "config")]
+    derived = Experiment(parse_args(common)).wall_limit
+    assert derived > 0
+    assert Experiment(parse_args([*common, "--wall-limit", "5400"])).wall_limit == 5400.0
+    with pytest.raises(SystemExit):
+        parse_args([*common, "--wall-limit", "-1"])

@@ -353,6 +353,9 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser.add_argument("--inspection-only", action="store_true",
                         help="only scans find missing tiles, as in the paper (robots do not report absent supports)")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
+    parser.add_argument("--wall-limit", type=float, default=defaults.wall_limit, metavar="SECONDS",
+                        help="wall-clock seconds a trial may take before it counts as timed out (default: from the "
+                        "structure's planned makespan, the time factor and the VI robots)")
     parser.add_argument("--record-scans", action="store_true",
                         help="write every VI robot's Kinect frames, true poses and truth to a rosbag2 in the trial's "
                         "logs (<vi robot>_scans, for `ros2 run vi_node classify`)")
@@ -375,6 +378,8 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
             or time_factor <= 0:
         parser.error("--robots must be >= 1, --trials, --removals, --misplacements and --wrong-tiles >= 0, "
                      "--real-time-factor > 0")
+    if args.wall_limit < 0:
+        parser.error("--wall-limit must be >= 0 (0: from the structure)")
     if not Path(args.config).is_dir():
         parser.error(f"--config {args.config}: no such folder of parameter files")
     robots = [f"robot{k + 1}" for k in range(args.robots)]
@@ -393,7 +398,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
         report_dir=Path(args.report or f"{REPORTS}/{structure.stem}"), config_dir=Path(args.config).resolve(),
         baseline=not args.no_baseline, drop_probability=args.drop_probability, kill_robot=args.kill_robot,
         silent_robot=args.silent_robot, quiet=args.quiet, inspection=not args.no_inspection,
-        robots_find_missing=not args.inspection_only, record_scans=args.record_scans,
+        robots_find_missing=not args.inspection_only, record_scans=args.record_scans, wall_limit=args.wall_limit,
     )
 
 
