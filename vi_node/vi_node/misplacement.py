@@ -288,6 +288,20 @@ def _judge_tile(
     )
 
 
+def moved_as_one(offsets: Sequence[tuple[float, float, float]], settings: MisplacementSettings) -> bool:
+    """Whether the motions found for several tiles look like one motion of them all, which is what a
+    misaligned scan makes the tiles look like: the same shift of 1.5 cm or more (turns aside: a
+    turned tile's refit takes the common shift too), or, with no such shift, the same turn. Tiles that
+    slipped when placed each move their own way. `offsets`: (x, y, yaw) per tile."""
+    motions = np.asarray(offsets, dtype=float).reshape(-1, 3)
+    if len(motions) < 2:
+        return True
+    common = motions[:, :2].mean(axis=0)
+    if np.max(np.linalg.norm(motions[:, :2] - common, axis=1)) > settings.shift / 2:
+        return False
+    return bool(np.linalg.norm(common) >= settings.shift or np.ptp(motions[:, 2]) <= settings.turn)
+
+
 def moved_tile(tile: PlacedTile, offset: tuple[float, float, float]) -> PlacedTile:
     """The tile turned by offset[2] about its centroid's vertical and shifted by offset[0:2]."""
     turn = rotation_from_rpy(0.0, 0.0, offset[2])

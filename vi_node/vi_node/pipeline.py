@@ -47,6 +47,7 @@ from vi_node.misplacement import (
     ScanPoints,
     assess,
     confirmed_by_pixels,
+    moved_as_one,
     other_shape,
     something_else_there,
 )
@@ -210,7 +211,7 @@ class InspectionPipeline:
         if not results[0].ok:  # the best fit's alignment fails its checks: a rival alone is no better
             return results[0]
         if len(rivals) > 1:
-            return agreed(rivals)
+            return self._unless_all_moved(agreed(rivals), scan)
         result = rivals[0]
         if self.paper or not result.moved_tiles():
             return result
@@ -751,15 +752,24 @@ class InspectionPipeline:
         return self._unless_all_moved(second if second.ok else first, scan)
 
     def _unless_all_moved(self, result: ScanResult, scan: _Scan) -> ScanResult:
-        """No states from a scan in which many tiles seem moved: a misalignment, far more likely than
-        several tiles misplaced at once (or the whole structure was pushed: S_a no longer fits); nor
-        from one whose pixels doubt the alignment."""
+        """No states from a scan in which several tiles seem moved: a misalignment is far more likely
+        than three tiles misplaced at once, or two that moved as one (`moved_as_one`), or two moved
+        beside as many called missing (or the whole structure was pushed: S_a no longer fits); nor
+        from one whose pixels doubt the alignment. Two tiles that each moved their own way, in a scan
+        that finds the rest in place, are two misplaced tiles."""
         if result.ok and result.doubt:
             return scan.failed(f"alignment doubtful: {result.doubt}")
         judged = len(result.misplacement)
-        moved = len(result.moved_tiles())
-        if moved >= 2 and moved >= 0.25 * judged:
-            return scan.failed(f"alignment doubtful: {moved} of {judged} tiles seem moved together")
+        moved = result.moved_tiles()
+        if len(moved) < 2 or len(moved) < 0.25 * judged:
+            return result
+        together = f"alignment doubtful: {len(moved)} of {judged} tiles seem moved together"
+        if len(moved) > 2 or moved_as_one([result.misplacement[t][1] for t in moved], self.misplacement_settings):
+            return scan.failed(together)
+        states = [t.state for t in result.tiles]
+        missing = states.count(TileState.MISSING)
+        if missing + len(moved) >= 0.5 * (len(states) - states.count(TileState.OCCLUDED)):
+            return scan.failed(f"alignment doubtful: {len(moved)} tiles seem moved and {missing} missing")
         return result
 
 
