@@ -23,15 +23,11 @@ PoseSink = Callable[[str, int, OverheadPose], None]  # robot, stamp (ns), pose
 
 
 class OtherRobots:
-    def __init__(
-        self, node: Node, names: str, on_pose: PoseSink, on_bad_pose: Callable[[str], None],
-        callback_group: Any = None,
-    ) -> None:
+    def __init__(self, node: Node, names: str, on_pose: PoseSink, on_bad_pose: Callable[[str], None]) -> None:
         self.node = node
         self.names = [n.strip() for n in names.split(",") if n.strip()]
         self.on_pose = on_pose
         self.on_bad_pose = on_bad_pose
-        self.callback_group = callback_group
         self.subscriptions: dict[str, Any] = {}
 
     def follow(self) -> None:
@@ -40,7 +36,7 @@ class OtherRobots:
             if name not in self.subscriptions:
                 self.subscriptions[name] = self.node.create_subscription(
                     PoseStamped, f"/{name}/overhead_pose", lambda msg, name=name: self._heard(name, msg),
-                    OTHER_ROBOT_POSES, callback_group=self.callback_group,
+                    OTHER_ROBOT_POSES,
                 )
 
     def _in_graph(self) -> list[str]:
