@@ -318,7 +318,7 @@ REPORTS = ExperimentConfig().report_dir.parent  # reports/<structure> by default
 
 def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser = argparse.ArgumentParser(prog="experiment", description=__doc__.split("\n\n")[0])
-    defaults, network_defaults = ExperimentConfig(), NetworkSettings()
+    defaults = ExperimentConfig()
     parser.add_argument("--structure", default=str(defaults.structure_file), help="structure file")
     parser.add_argument("--robots", type=int, default=defaults.robots,
                         help=f"assembly robots (default {defaults.robots})")
@@ -359,16 +359,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
     parser.add_argument("--record-scans", action="store_true",
                         help="write every VI robot's Kinect frames, true poses and truth to a rosbag2 in the trial's "
                         "logs (<vi robot>_scans, for `ros2 run vi_node classify`)")
-    parser.add_argument("--hosts", choices=["netns"], default=network_defaults.hosts,
-                        help="netns: every robot, the base station and the world on a host of its own (needs root)")
-    parser.add_argument("--link-loss", type=float, default=network_defaults.loss_percent, metavar="PCT",
-                        help="robots' links drop PCT%% of frames")
-    parser.add_argument("--link-rate", type=float, default=network_defaults.rate_mbit, metavar="MBIT",
-                        help="robots' links carry MBIT Mbit/s")
-    parser.add_argument("--link-delay", type=float, default=network_defaults.delay_ms, metavar="MS",
-                        help="robots' links delay frames MS ms")
-    parser.add_argument("--link-outage", action="append", default=[], metavar="ROBOT:AT:SECONDS",
-                        help="cut ROBOT's link at AT s of simulated time for SECONDS (repeatable)")
+    _add_network_options(parser)
     args = parser.parse_args(argv)
     structure = Path(args.structure)
     time_factor = args.real_time_factor or (DEFAULT_NETNS_TIME_FACTOR if args.hosts else defaults.real_time_factor)
@@ -382,14 +373,7 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
         parser.error("--wall-limit must be >= 0 (0: from the structure)")
     if not Path(args.config).is_dir():
         parser.error(f"--config {args.config}: no such folder of parameter files")
-    robots = [f"robot{k + 1}" for k in range(args.robots)]
-    try:
-        network = NetworkSettings(args.hosts, args.link_loss, args.link_rate, args.link_delay,
-                                  tuple(Outage.parse(text) for text in args.link_outage))
-        network.check(robots, ExperimentConfig(vi_robots=args.vi_robots).vi_robot_names)
-        TeamNetwork.link_shape(network)  # checks the link's numbers
-    except ValueError as error:
-        parser.error(str(error))
+    network = _network(parser, args)
     return ExperimentConfig(
         structure_file=structure.resolve(), robots=args.robots, vi_robots=args.vi_robots, trials=args.trials,
         removals=args.removals,
@@ -400,6 +384,33 @@ def parse_args(argv: list[str] | None) -> ExperimentConfig:
         silent_robot=args.silent_robot, quiet=args.quiet, inspection=not args.no_inspection,
         robots_find_missing=not args.inspection_only, record_scans=args.record_scans, wall_limit=args.wall_limit,
     )
+
+
+def _add_network_options(parser: argparse.ArgumentParser) -> None:
+    defaults = NetworkSettings()
+    parser.add_argument("--hosts", choices=["netns"], default=defaults.hosts,
+                        help="netns: every robot, the base station and the world on a host of its own (needs root)")
+    parser.add_argument("--link-loss", type=float, default=defaults.loss_percent, metavar="PCT",
+                        help="robots' links drop PCT%% of frames")
+    parser.add_argument("--link-rate", type=float, default=defaults.rate_mbit, metavar="MBIT",
+                        help="robots' links carry MBIT Mbit/s")
+    parser.add_argument("--link-delay", type=float, default=defaults.delay_ms, metavar="MS",
+                        help="robots' links delay frames MS ms")
+    parser.add_argument("--link-outage", action="append", default=[], metavar="ROBOT:AT:SECONDS",
+                        help="cut ROBOT's link at AT s of simulated time for SECONDS (repeatable)")
+
+
+def _network(parser: argparse.ArgumentParser, args: argparse.Namespace) -> NetworkSettings:
+    """The network options, checked against the team (one line and exit 2 when they do not fit)."""
+    robots = [f"robot{k + 1}" for k in range(args.robots)]
+    try:
+        network = NetworkSettings(args.hosts, args.link_loss, args.link_rate, args.link_delay,
+                                  tuple(Outage.parse(text) for text in args.link_outage))
+        network.check(robots, ExperimentConfig(vi_robots=args.vi_robots).vi_robot_names)
+        TeamNetwork.link_shape(network)  # checks the link's numbers
+    except ValueError as error:
+        parser.error(str(error))
+    return network
 
 
 def main(argv: list[str] | None = None) -> int:
