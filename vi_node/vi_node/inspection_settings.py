@@ -101,8 +101,15 @@ class InspectionSettings:
     alignment_hypotheses: int = setting(
         3, "default: best x/y/yaw hypotheses of the coarse search refined before the best fit is kept ..."
     )
+    alignment_candidates: int = setting(
+        24, "default: x/y/yaw hypotheses of the coarse search ranked by how well the depth image bears them out"
+    )
+    seen_through_weight: float = setting(
+        1.0, "default: a pixel measured behind S_a's surface costs a pose this many agreeing pixels"
+    )
     ambiguity: float = setting(
-        0.95, "default: ... unless another fit, 3 cm or 2 deg away, puts this share as many points on S_a"
+        0.95, "default: ... unless another fit, 3 cm or 2 deg away, puts this share as many points on S_a or "
+        "explains the depth image nearly as well"
     )
     min_fit_points: int = setting(
         25, "default: the best fit must put this many of its (at most icp_max_points) points on S_a"
@@ -266,6 +273,8 @@ class InspectionSettings:
             "floor_stride",
             "icp_max_iterations",
             "alignment_hypotheses",
+            "alignment_candidates",
+            "seen_through_weight",
             "support_distance",
             "coarse_shift_range",
             "coarse_yaw_range",

@@ -34,7 +34,8 @@ class MisplacementSettings:
     reach: float = 0.04  # m, points this close to a tile (and nearest to it) are its points
     min_points: int = 40  # fewer points: the tile cannot be judged
     min_off_share: float = 0.15  # refit only when this share of its points is off its faces
-    improvement: float = 0.85  # the refit must bring the median distance below this share of it before
+    improvement: float = 0.85  # the refit must bring the median distance below this share of it before ...
+    min_gain: float = 0.0005  # m, ... and by this much: points already on its faces are not put better
     iterations: int = 6
     max_shift: float = 0.06  # m, fits beyond these are not believed ...
     max_turn: float = math.radians(45.0)  # rad, ... (a run-off fit, not a misplaced tile)
@@ -270,7 +271,7 @@ def _judge_tile(
     moved = (shifted or turned) and believable and _fits_among(context.tiles, index, offset, context.solid)
     # the refit must explain the points better; a clear turn of a small tile barely changes the
     # distances (the noise is as large as the corners' motion), its significance speaks for it
-    better = refit.after <= settings.improvement * refit.before or (
+    better = refit.after <= min(settings.improvement * refit.before, refit.before - settings.min_gain) or (
         turned and refit.turn_sigmas >= 1.5 * settings.turn_significance
     )
     if moved and better:

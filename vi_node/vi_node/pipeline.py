@@ -2,7 +2,8 @@
 
 `InspectionPipeline.inspect` reads as the row of stages, each its own module: `pose_prior`
 (overhead pose + mount), `floor` (height, roll, pitch), `robot_mask` (other robots in view, left
-out of everything that follows), `coarse_alignment` (x, y, yaw search), `candidates` (C_1), `icp`
+out of everything that follows), `coarse_alignment` (x, y, yaw search, its hypotheses ranked by
+`view_agreement`), `candidates` (C_1), `icp`
 (point-to-plane, with the floor as part of the known scene), `raycast` (the virtual scan C_v),
 then the classification of the mode chosen at start-up:
 
@@ -59,6 +60,7 @@ from vi_node.raycast import VirtualScan, VirtualScene
 from vi_node.rival_fits import agreed, distinct
 from vi_node.robot_mask import RobotBoxes, inside_robots, near_robot_points, tall_things
 from vi_node.scan_result import ScanResult, TileResult
+from vi_node.view_agreement import DepthView, view_agreement
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -311,21 +313,41 @@ class InspectionPipeline:
         if len(near) < enough:
             hidden = f"S_a not in view: only {len(near)} points near where it should be"
             return [pose], f"{hidden} (hidden, out of the image, or a wrong overhead pose or camera mount)"
-        found = model.coarse.hypotheses(near.points, pose[:3, 3], 1 if self.paper else s.alignment_hypotheses)
+        found = model.coarse.hypotheses(near.points, pose[:3, 3], 1 if self.paper else s.alignment_candidates)
         found = [h for h in found if h.on_surface >= 0.25 and h.on_surface_points >= enough]
         scan.timer.lap("coarse")
         if not found:
             return [pose], "alignment failed: no x/y/yaw puts the scan on S_a"
-        if len(found) == 1:
-            return [found[0].correction @ pose], ""
-        return self._best_fits(scan, [h.correction @ pose for h in found], near.points, pose)
+        starts = [h.correction @ pose for h in found]
+        if len(starts) > s.alignment_hypotheses:
+            starts = self._most_agreeing(scan, starts)[: s.alignment_hypotheses]
+        if len(starts) == 1:
+            return starts, ""
+        return self._best_fits(scan, starts, near.points, pose)
+
+    def _most_agreeing(self, scan: _Scan, poses: list[Array]) -> list[Array]:
+        """`poses`, those whose view of S_a the depth image bears out best first (`view_agreement`:
+        1 cm cells cannot tell the poses of a view of a few flat tiles apart; the pixels a pose
+        sees through can)."""
+        scores = [self._agreement(scan, pose) for pose in poses]
+        scan.timer.lap("view agreement")
+        return [poses[k] for k in sorted(range(len(poses)), key=lambda k: -scores[k])]
+
+    def _agreement(self, scan: _Scan, pose: Array) -> float:
+        """How well the depth image bears out S_a seen from `pose` (`view_agreement`)."""
+        s, model = self.settings, self.model
+        view = DepthView(scan.cloud, scan.camera, scan.masked)
+        agreement = view_agreement(view, model.scene, pose, (model.low, model.high), (s.min_range, s.max_range),
+                                   self.evidence_settings)
+        return agreement.score(s.seen_through_weight)
 
     def _best_fits(self, scan: _Scan, poses: list[Array], points: Array, pose: Array) -> tuple[list[Array], str]:
         """The pose, of `poses` refined by a short ICP each, that puts most of `points` (map frame
         under `pose`) within a few millimetres of S_a's surfaces, and its rivals: the poses whose
-        fits, 3 cm or 2 degrees away, explain the points nearly as well (a view of a few faces of
-        a repetitive structure; the best fit moved by one of S_a's periods, `periodicity`, is always
-        tried); or why none can be trusted (too few points fit at all)."""
+        fits, 3 cm or 2 degrees away, explain the points nearly as well, or the depth image
+        (`view_agreement`) at least nearly as well (a view of a few faces of a repetitive structure;
+        the best fit moved by one of S_a's periods, `periodicity`, is always tried); or why none can
+        be trusted (too few points fit at all)."""
         s = self.settings
         sample = points[:: max(1, math.ceil(len(points) / s.icp_max_points))]
         fits = [fit for fit in (self._short_fit(scan, start, sample, pose) for start in poses) if fit is not None]
@@ -340,11 +362,15 @@ class InspectionPipeline:
         count, start, refined = fits[0]
         if count < s.min_fit_points:
             return [start], f"alignment failed: only {count} points fit S_a's surfaces"
+        agreement = self._agreement(scan, refined)
+        near_agreement = agreement - (1.0 - s.ambiguity) * abs(agreement)
         starts = [start]  # the full ICP starts from the hypotheses, not from these short refinements
         for other, elsewhere, refined_elsewhere in fits[1:]:
             shift, turn = pose_error(refined_elsewhere, refined)
-            if (shift > 0.03 or turn > math.radians(2.0)) and other >= s.ambiguity * count:
+            if (shift > 0.03 or turn > math.radians(2.0)) and (
+                    other >= s.ambiguity * count or self._agreement(scan, refined_elsewhere) >= near_agreement):
                 starts.append(elsewhere)
+        scan.timer.lap("view agreement")
         return starts, ""
 
     def _short_fit(self, scan: _Scan, start: Array, sample: Array, pose: Array) -> tuple[int, Array, Array] | None:

@@ -1,0 +1,62 @@
+"""How well a camera pose explains the depth image (vi_node.view_agreement): the true pose sees
+through no tile; a pose a few centimetres and degrees off, which puts the scan's points onto S_a's
+flat tops just as well, sees through hundreds of pixels."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from vi_helpers import structure
+
+from tiling_sim.inspection_scenarios import Scene, view_from
+from tiling_sim.kinect import KinectSimulator
+from vi_node.evidence import EvidenceSettings
+from vi_node.icp import yaw_shift_transform
+from vi_node.inspection_settings import InspectionSettings
+from vi_node.pipeline import InspectionPipeline
+from vi_node.view_agreement import DepthView, view_agreement
+
+RANGES = (0.5, 4.5)
+
+
+@pytest.fixture(scope="module")
+def first_layer() -> tuple[InspectionPipeline, DepthView, np.ndarray]:
+    """The paper's three flat tiles of the first layer (long rectangles 1-3), seen from 1 m."""
+    paper = structure()
+    scene = Scene(paper, (1, 2, 3), ())
+    view = view_from(scene.centre, math.radians(30.0), 1.0, np.random.default_rng(7))
+    cloud = KinectSimulator(seed=7).scan(scene.kinect_scene, view.camera)
+    pipeline = InspectionPipeline(paper, (1, 2, 3), InspectionSettings())
+    return pipeline, DepthView(cloud, pipeline.camera), view.camera
+
+
+def _agreement(pipeline: InspectionPipeline, view: DepthView, pose: np.ndarray):  # type: ignore[no-untyped-def]
+    model = pipeline.model
+    return view_agreement(view, model.scene, pose, (model.low, model.high), RANGES, EvidenceSettings())
+
+
+def test_the_true_pose_sees_through_no_tile(first_layer) -> None:  # type: ignore[no-untyped-def]
+    pipeline, view, truth = first_layer
+    agreement = _agreement(pipeline, view, truth)
+    assert agreement.agree > 200
+    assert agreement.behind <= 0.02 * agreement.agree
+
+
+@pytest.mark.parametrize("turn, shift", [(6.0, (0.0, 0.0)), (0.0, (0.05, 0.0)), (-5.0, (0.02, -0.04))])
+def test_a_pose_centimetres_off_sees_through_tiles_and_scores_lower(first_layer, turn, shift) -> None:  # type: ignore[no-untyped-def]
+    pipeline, view, truth = first_layer
+    wrong = yaw_shift_transform(math.radians(turn), truth[:3, 3], np.array(shift)) @ truth
+    right, off = _agreement(pipeline, view, truth), _agreement(pipeline, view, wrong)
+    assert off.behind >= 10 * max(right.behind, 5)
+    assert off.score(3.0) < right.score(3.0)
+
+
+def test_masked_pixels_and_blanks_say_nothing(first_layer) -> None:  # type: ignore[no-untyped-def]
+    pipeline, view, truth = first_layer
+    everything = np.ones(view.cloud.shape[:2], dtype=bool)
+    masked = DepthView(view.cloud, view.camera, everything)
+    blank = DepthView(np.full_like(view.cloud, np.nan), view.camera)
+    assert _agreement(pipeline, masked, truth) == _agreement(pipeline, blank, truth)
+    assert _agreement(pipeline, blank, truth).agree == _agreement(pipeline, blank, truth).behind == 0

@@ -1,0 +1,73 @@
+"""How well a pose of the camera explains the depth image (an addition to paper sections 2.2.1-2.2.2).
+
+The coarse x, y, yaw search and ICP score a pose by how many scan points lie near S_a's surfaces.
+A view of a few flat tiles leaves that score flat: slid a few centimetres along their tops, or
+turned a few degrees, the points still lie on some surface (the search's 1 cm cells cannot tell),
+and the search's best hypotheses can all lie 6-10 degrees from the truth. The depth image tells
+them apart: ray cast S_a from the pose (`raycast`) and compare each pixel's measured depth with
+the virtual one. Pixels measured where S_a's surface is agree; pixels measured clearly *behind* a
+surface of S_a say the camera saw through where the pose puts a tile. A misaligned pose puts
+tiles in front of the floor and of other tiles that the camera saw, so it collects such pixels by
+the hundred; the true pose has almost none (a tile really gone has a few dozen). Pixels measured
+in front of S_a (robots, clutter, tiles not yet reported) and blanks say nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from vi_node.camera_model import PinholeCamera
+from vi_node.evidence import EvidenceSettings, depth_tolerance
+from vi_node.raycast import VirtualScene
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ViewAgreement:
+    """Pixels of S_a's tiles (at one pose, every `stride`-th pixel) the measurement explains or contradicts."""
+
+    agree: int  # measured on the tile's surface
+    behind: int  # measured clearly behind it: seen through where the pose puts a tile
+
+    def score(self, behind_weight: float) -> float:
+        return self.agree - behind_weight * self.behind
+
+
+@dataclass(frozen=True)
+class DepthView:
+    """What the score needs of one scan: its organised cloud, the camera and the pixels to ignore."""
+
+    cloud: NDArray[np.float32]  # (H, W, 3) optical frame
+    camera: PinholeCamera
+    masked: NDArray[np.bool_] | None = None  # (H, W): pixels of other robots
+    stride: int = 3
+
+
+def view_agreement(
+    view: DepthView,
+    scene: VirtualScene,
+    pose: Array,
+    box: tuple[Array, Array],
+    ranges: tuple[float, float],
+    settings: EvidenceSettings,
+) -> ViewAgreement:
+    """Agreeing and contradicting pixels of S_a (`scene`, bounding `box`) seen from `pose`."""
+    rows, cols = view.camera.box_roi(pose, *box)
+    rows = slice(rows.start, rows.stop, view.stride)
+    cols = slice(cols.start, cols.stop, view.stride)
+    virtual = scene.cast(view.camera, pose, rows, cols, *ranges)
+    on_tile = virtual.tile >= 0
+    if view.masked is not None:
+        on_tile &= ~view.masked[rows, cols]
+    measured = view.cloud[rows, cols, 2][on_tile]
+    expected = virtual.depth[on_tile]
+    tolerance = depth_tolerance(expected, virtual.cos_incidence[on_tile], settings)
+    with np.errstate(invalid="ignore"):  # blanks (NaN) compare False: they say nothing
+        difference = measured - expected
+        agree = np.abs(difference) <= tolerance
+        behind = difference > tolerance
+    return ViewAgreement(int(np.count_nonzero(agree)), int(np.count_nonzero(behind)))
