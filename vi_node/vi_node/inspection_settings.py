@@ -102,7 +102,7 @@ class InspectionSettings:
         3, "default: best x/y/yaw hypotheses of the coarse search refined before the best fit is kept ..."
     )
     alignment_candidates: int = setting(
-        24, "default: x/y/yaw hypotheses of the coarse search ranked by how well the depth image bears them out"
+        16, "default: x/y/yaw hypotheses of the coarse search ranked by how well the depth image bears them out"
     )
     seen_through_weight: float = setting(
         1.0, "default: a pixel measured behind S_a's surface costs a pose this many agreeing pixels"

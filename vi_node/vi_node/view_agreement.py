@@ -44,7 +44,7 @@ class DepthView:
     cloud: NDArray[np.float32]  # (H, W, 3) optical frame
     camera: PinholeCamera
     masked: NDArray[np.bool_] | None = None  # (H, W): pixels of other robots
-    stride: int = 3
+    stride: int = 4
 
 
 def view_agreement(
