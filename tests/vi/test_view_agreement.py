@@ -1,6 +1,6 @@
 """How well a camera pose explains the depth image (vi_node.view_agreement): the true pose sees
 through no tile; a pose a few centimetres and degrees off, which puts the scan's points onto S_a's
-flat tops just as well, sees through hundreds of pixels."""
+flat tops just as well, sees through dozens of the pixels sampled."""
 
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ def _agreement(pipeline: InspectionPipeline, view: DepthView, pose: np.ndarray):
 def test_the_true_pose_sees_through_no_tile(first_layer) -> None:  # type: ignore[no-untyped-def]
     pipeline, view, truth = first_layer
     agreement = _agreement(pipeline, view, truth)
-    assert agreement.agree > 200
+    assert agreement.agree > 150
     assert agreement.behind <= 0.02 * agreement.agree
 
 
@@ -49,7 +49,7 @@ def test_a_pose_centimetres_off_sees_through_tiles_and_scores_lower(first_layer,
     pipeline, view, truth = first_layer
     wrong = yaw_shift_transform(math.radians(turn), truth[:3, 3], np.array(shift)) @ truth
     right, off = _agreement(pipeline, view, truth), _agreement(pipeline, view, wrong)
-    assert off.behind >= 10 * max(right.behind, 5)
+    assert off.behind >= 30 and off.behind >= 10 * right.behind
     assert off.score(3.0) < right.score(3.0)
 
 
