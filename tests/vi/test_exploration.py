@@ -44,6 +44,24 @@ def test_a_tile_a_robot_found_absent_is_looked_at_first_until_a_scan_judges_it()
     assert exploration.priority(now=131.0)[1] == 2.0  # now a missing call to confirm
 
 
+def test_supports_of_the_next_placements_are_looked_at_again_once_their_last_look_is_old() -> None:
+    """The currently targeted building region: a support seen present long ago is worth a look
+    before a robot places on it (a tile removed meanwhile stops that robot); one seen a moment ago
+    is not; the others grow back as before."""
+    weights = PriorityWeights(next_support=3.0, support_recheck=20.0, stale_time=60.0)
+    exploration = Exploration(weights)
+    exploration.expect([1, 2, 3])
+    exploration.judged({1: PRESENT, 2: PRESENT, 3: PRESENT}, now=100.0)
+    exploration.targeted([1, 2])
+    exploration.judged({2: PRESENT}, now=125.0)
+    priority = exploration.priority(now=130.0)
+    assert priority[1] == pytest.approx(3.0)  # 30 s since its last look: the full weight
+    assert priority[2] == pytest.approx(3.0 * 5.0 / 20.0)  # seen 5 s ago
+    assert priority[3] == pytest.approx(30.0 / 60.0)  # no placement rests on it
+    exploration.targeted([])
+    assert exploration.priority(now=130.0)[1] == pytest.approx(30.0 / 60.0)
+
+
 def test_choose_weighs_gain_against_driving_and_avoids_failed_viewpoints() -> None:
     exploration = Exploration(WEIGHTS, travel_cost=1.0, failure_memory=30.0)
     candidates = [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (0.0, 3.0, 0.0)]

@@ -263,3 +263,19 @@ def test_everything_removed_gives_no_states() -> None:
     cloud = KinectSimulator(seed=21).scan(scene.kinect_scene, view.camera)
     result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
     assert not result.ok and result.tiles == []
+
+
+def test_a_fit_beyond_the_overhead_errors_gives_way_to_a_believable_one_nearly_as_good() -> None:
+    """A view of two tiles fit about as well 8 cm / 4 deg off (the team's recorded scans): the fit
+    whose correction the overhead errors cannot explain would fail the scan's checks, so the
+    believable one explaining nearly as many points goes first; one explaining far fewer does not."""
+    pipeline = InspectionPipeline(structure(), None, DEFAULT)
+    prior = np.eye(4)
+    believable, beyond = np.eye(4), np.eye(4)
+    believable[:2, 3] = (0.04, 0.02)
+    beyond[:2, 3] = (0.10, 0.04)
+    start = np.eye(4)
+    fits = [(195, start, beyond), (194, start, believable)]
+    assert pipeline._believable_first(fits, prior)[0][2] is believable
+    assert pipeline._believable_first([(195, start, beyond), (120, start, believable)], prior)[0][2] is beyond
+    assert pipeline._believable_first([(195, start, believable), (194, start, beyond)], prior)[0][2] is believable

@@ -8,9 +8,11 @@ position before the building process can proceed."
 Each expected tile carries a priority: highest just after a robot reported it placed (it has to be
 checked) or reported it absent (a robot could not place on it: a scan should confirm), high while
 its state is undetermined (occluded, or never seen) or a single scan called it missing (to be
-confirmed, preferably from elsewhere), and otherwise growing
-with the time since it was last seen, so that every tile is looked at again now and then (tiles
-can disappear while building). Candidate viewpoints stand on rings around the structure, facing
+confirmed, preferably from elsewhere), high again once it was seen a while ago and a tile a
+robot is placing or about to place rests on it (the currently targeted building region: a
+support gone missing stops that placement, and a scan should find it before the robot does), and
+otherwise growing with the time since it was last seen, so that every tile is looked at again now
+and then (tiles can disappear while building). Candidate viewpoints stand on rings around the structure, facing
 it; the next one is the candidate whose view (predicted by ray tracing S_a, see
 `viewpoint.rank_viewpoints`) resolves the most priority, less a small cost for driving there.
 
@@ -60,6 +62,8 @@ class PriorityWeights:
     undetermined: float = 2.0  # occluded or never judged
     suspected: float = 4.0  # a robot found it absent since it was last judged
     stale_time: float = 60.0  # s after which a tile seen present is worth 1 again
+    next_support: float = 3.0  # a tile a robot is about to place rests on it ...
+    support_recheck: float = 20.0  # ... and it was last judged this many s ago (less: a share of it)
 
 
 @dataclass
@@ -81,6 +85,7 @@ class Exploration:
     shared_weight: float = 0.25  # share of its priority a tile keeps that another robot's claimed view resolves
     tiles: dict[int, TileKnowledge] = field(default_factory=dict)
     failed: dict[int, float] = field(default_factory=dict)  # candidate index -> when it failed
+    next_supports: frozenset[int] = frozenset()  # tiles the robots' next placements rest on
 
     def viewpoint_failed(self, index: int, now: float) -> None:
         """No scan from candidate `index` could be judged (not aligned, nothing in view)."""
@@ -101,6 +106,11 @@ class Exploration:
         """A robot found `tile_id` physically absent (it could not place a tile on it)."""
         if tile_id in self.tiles:
             self.tiles[tile_id].suspected_at = now
+
+    def targeted(self, supports: Iterable[int]) -> None:
+        """The tiles the placements the robots work on now rest on: the currently targeted building
+        region, where a tile gone missing stops the build (a robot finds it before a scan did)."""
+        self.next_supports = frozenset(supports)
 
     def judged(self, states: dict[int, str], now: float) -> None:
         """A scan looked at these tiles (only those it saw: not the repeats of a fused report)."""
@@ -131,6 +141,9 @@ class Exploration:
                 out[tile_id] = w.undetermined
             else:
                 out[tile_id] = min(1.0, (now - k.judged_at) / w.stale_time)
+                if tile_id in self.next_supports:
+                    recheck = w.next_support * min(1.0, (now - k.judged_at) / w.support_recheck)
+                    out[tile_id] = max(out[tile_id], recheck)
         return out
 
     def unresolved(self) -> list[int]:

@@ -4,7 +4,8 @@ its `vi_node`.
 
 A thin adapter around `exploration.Exploration` and `viewpoint.rank_viewpoints`. In: the latched
 `/structure`, `/placement_reports` (tiles claimed placed, and supports a robot found absent: the
-priority), `/auction/announcements`
+priority), `/robot_status` (the tiles each robot places now and next: their supports are the
+currently targeted building region), `/auction/announcements`
 (tiles no longer expected), `/tile_states` (what the scans of every VI robot judged). Out: goals to
 the base's `navigate_to` action. After each arrival it waits for the first tile states of a scan
 its own robot took there (`robot_name`; vi_node answers every scan: tile states, or why it has
@@ -32,9 +33,16 @@ from tiling_assembly.scan_freshness import RepeatFilter
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.action import NavigateTo
-from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, Structure, TileState, TileStateArray
+from tiling_assembly_msgs.msg import (
+    AuctionAnnouncement,
+    PlacementReport,
+    RobotStatus,
+    Structure,
+    TileState,
+    TileStateArray,
+)
 from tiling_ros.parameters import declare_settings, setting
-from tiling_ros.qos import COORDINATION, LATCHED, OTHER_ROBOT_POSES, REPORTS
+from tiling_ros.qos import COORDINATION, HEARTBEATS, LATCHED, OTHER_ROBOT_POSES, REPORTS
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import is_zero, stamp_to_nanoseconds, stamp_to_seconds
 from vi_node.camera_model import PinholeCamera
@@ -134,6 +142,7 @@ class ExplorerNode(Node):
         self.candidates: list[tuple[float, float, float]] = []
         self.placed: dict[int, int] = {}  # tile -> stamp (ns) of its latest placement report
         self.withdrawn: dict[int, int] = {}  # tile -> stamp (ns) of its latest announcement
+        self.working_on: dict[str, tuple[int, ...]] = {}  # assembly robot -> the tiles it places now and next
         self.scene: VirtualScene | None = None  # S_a for ray tracing candidate views
         self.scene_tiles: tuple[int, ...] = ()
         self.here: tuple[float, float, float] | None = None
@@ -157,6 +166,7 @@ class ExplorerNode(Node):
         self.create_subscription(PlacementReport, "/placement_reports", self.on_report, REPORTS)
         self.create_subscription(AuctionAnnouncement, "/auction/announcements", self.on_announcement, COORDINATION)
         self.create_subscription(TileStateArray, "/tile_states", self.on_states, COORDINATION)
+        self.create_subscription(RobotStatus, "/robot_status", self.on_robot_status, HEARTBEATS)
         self.create_subscription(PoseStamped, "overhead_pose", self.on_own_pose, OTHER_ROBOT_POSES)
         self.create_timer(0.5, self.tick)
         if self.structure_file:
@@ -206,6 +216,18 @@ class ExplorerNode(Node):
     def on_announcement(self, msg: AuctionAnnouncement) -> None:
         self.withdrawn[msg.tile_id] = stamp_to_nanoseconds(msg.header.stamp)
         self.update_expected()
+
+    def on_robot_status(self, msg: RobotStatus) -> None:
+        """Where the building happens: the supports of what each robot places now and next."""
+        busy = msg.state in (RobotStatus.WAITING, RobotStatus.PLACING)
+        working = tuple(msg.remaining_tiles[:2]) if busy else ()
+        if self.working_on.get(msg.robot_name) == working or self.structure is None:
+            return
+        self.working_on[msg.robot_name] = working
+        supports = self.structure.supports
+        self.exploration.targeted(
+            s for tiles in self.working_on.values() for t in tiles for s in supports.get(t, ())
+        )
 
     def on_own_pose(self, msg: PoseStamped) -> None:
         """Where the robot stands before its first goal (VI robots start apart: each looks near itself)."""

@@ -359,6 +359,7 @@ class InspectionPipeline:
         if not fits:
             return poses[:1], ""
         fits.sort(key=lambda fit: -fit[0])
+        fits = self._believable_first(fits, scan.prior)
         count, start, refined = fits[0]
         if count < s.min_fit_points:
             return [start], f"alignment failed: only {count} points fit S_a's surfaces"
@@ -372,6 +373,18 @@ class InspectionPipeline:
                 starts.append(elsewhere)
         scan.timer.lap("view agreement")
         return starts, ""
+
+    def _believable_first(self, fits: list[tuple[int, Array, Array]], prior: Array) -> list[tuple[int, Array, Array]]:
+        """`fits` (most points on S_a first), the best believable one first when it puts nearly as
+        many points on S_a as the best: a view of two tiles fit about as well 8 cm and 4 degrees
+        off, and the fit beyond the overhead errors failed the scan's checks."""
+        if not _beyond_belief(fits[0][2], prior, self.settings):
+            return fits
+        enough = self.settings.ambiguity * fits[0][0]
+        for k, (count, _, refined) in enumerate(fits):
+            if count >= enough and not _beyond_belief(refined, prior, self.settings):
+                return [fits[k], *fits[:k], *fits[k + 1:]]
+        return fits
 
     def _short_fit(self, scan: _Scan, start: Array, sample: Array, pose: Array) -> tuple[int, Array, Array] | None:
         """(points of `sample` within 3 mm of S_a's surfaces, `start`, the pose a short ICP refines
@@ -576,10 +589,8 @@ class InspectionPipeline:
         scan.timer.lap("check alignment")
         if inliers < s.min_alignment_points or inliers < s.min_alignment_inliers * points:
             return f"alignment failed: ICP kept only {inliers} of {points} points on S_a"
-        shift = float(np.linalg.norm(pose[:2, 3] - scan.prior[:2, 3]))
-        turn = abs(_yaw(pose) - _yaw(scan.prior))
-        turn = min(turn, 2 * math.pi - turn)
-        if shift > s.max_pose_correction or turn > s.max_yaw_correction:
+        if _beyond_belief(pose, scan.prior, s):
+            shift, turn = _correction(pose, scan.prior)
             return (
                 f"alignment failed: the correction of the overhead pose ({shift * 100:.0f} cm, "
                 f"{math.degrees(turn):.0f} deg) is beyond belief"
@@ -837,6 +848,18 @@ def _cloud_problem(cloud: object) -> str:
     if np.count_nonzero(np.isfinite(cloud[::4, ::4, 2])) == 0:
         return "bad cloud: no valid points (all NaN or empty)"
     return ""
+
+
+def _correction(pose: Array, prior: Array) -> tuple[float, float]:
+    """How far (m) and how much (rad, about z) `pose` corrects the overhead `prior`."""
+    turn = abs(_yaw(pose) - _yaw(prior))
+    return float(np.linalg.norm(pose[:2, 3] - prior[:2, 3])), min(turn, 2 * math.pi - turn)
+
+
+def _beyond_belief(pose: Array, prior: Array, settings: InspectionSettings) -> bool:
+    """Whether `pose` corrects the overhead `prior` by more than its error bounds allow."""
+    shift, turn = _correction(pose, prior)
+    return shift > settings.max_pose_correction or turn > settings.max_yaw_correction
 
 
 def _shifted(pose: Array, shift: Array) -> Array:
