@@ -39,6 +39,23 @@ def test_a_tile_seen_present_then_missing_is_missing() -> None:
     assert fusion.state_of(3) == TileState.MISSING
 
 
+def test_a_missing_tile_one_view_sees_present_waits_for_a_second_view() -> None:
+    """Tiles do not come back by themselves: one view agreeing with a tile fused missing (a
+    misaligned scan fit it onto a clutter box) makes it undetermined; a second view decides."""
+    fusion = TileFusion()
+    fusion.add([3], seen(2, 150, 160), [M])
+    fusion.add([3], seen(1, 140, 160), [M])
+    fusion.add([3], seen(150, 3, 160), [P])
+    assert fusion.state_of(3) == TileState.OCCLUDED
+    fusion.add([3], seen(140, 2, 160), [P])
+    assert fusion.state_of(3) == TileState.PRESENT
+    fusion.add([3], seen(2, 150, 160), [M])  # and gone again: one view says so
+    assert fusion.state_of(3) == TileState.MISSING
+    fusion.forget([3])  # re-placed (reported): starts afresh, one view decides
+    fusion.add([3], seen(150, 3, 160), [P])
+    assert fusion.state_of(3) == TileState.PRESENT
+
+
 def test_a_few_see_through_pixels_make_a_present_tile_undetermined_not_present() -> None:
     fusion = TileFusion()
     for _ in range(5):
@@ -96,6 +113,20 @@ def test_a_misplaced_tile_stays_misplaced_until_seen_in_place() -> None:
     fusion.forget([4])
     fusion.add([4], seen(200, 0, 210), [P], {4: (False, (0.0, 0.0, 0.0), 0.002)})
     assert fusion.state_of(4) == TileState.PRESENT
+
+
+def test_a_flagged_tile_whose_place_a_later_view_sees_empty_is_missing() -> None:
+    """A removed trapezoid flagged once (a misaligned view) must not stay "misplaced": a view that
+    sees its place empty and finds nothing of it moved nearby makes it missing, and so does one
+    that could not judge its placement (no points of it left); a view that flags it keeps it."""
+    for judged in ({5: (False, (0.0, 0.0, 0.0), 0.003)}, None):
+        fusion = TileFusion()
+        fusion.add([5], seen(280, 450, 900), [M], {5: (True, (0.03, 0.01, 0.0), 0.004)})
+        assert fusion.state_of(5) == TileState.MISPLACED
+        fusion.add([5], seen(2, 600, 700), [M], {5: (True, (0.03, 0.01, 0.0), 0.004)})
+        assert fusion.state_of(5) == TileState.MISPLACED
+        fusion.add([5], seen(1, 1500, 2200), [M], judged)
+        assert fusion.state_of(5) == TileState.MISSING
 
 
 def test_paper_rules_keep_the_latest_resolved_state() -> None:

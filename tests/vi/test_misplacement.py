@@ -10,7 +10,7 @@ import pytest
 from vi_helpers import structure
 
 from tiling_assembly.contacts import separation
-from tiling_assembly.geometry import turn_symmetry
+from tiling_assembly.geometry import PlacedTile, turn_symmetry
 from tiling_sim.inspection_scenarios import Scene, misplace_tile, view_from
 from tiling_sim.kinect import KinectSimulator
 from vi_node.classify import TileState
@@ -132,6 +132,30 @@ def test_a_tile_of_the_wrong_type_is_flagged_and_its_neighbours_are_not(tile: in
         flagged_views += states[tile].state == TileState.MISPLACED
         assert [t for t, s in states.items() if s.state == TileState.MISPLACED and t != tile] == []
     assert flagged_views >= 3
+
+
+def test_a_long_rectangle_where_a_square_was_planned_is_flagged_by_what_reaches_over_its_neighbours() -> None:
+    """Square 10 swapped for a long rectangle: its top is flush with the long rectangles 11 and 12
+    beside it and covers the whole square, so the square's own points fit; only the rectangle's
+    ends, 2 cm over the octagons' tops, tell (`_reaching_over`). They count for the square, the
+    smallest tile beside them, not for rectangle 12."""
+    paper = structure()
+    square = paper.tiles[10]
+    swapped = PlacedTile(10, "long_rectangle", paper.tile_types["long_rectangle"].shape, square.rotation,
+                         square.position)
+    scene = Scene(paper, tuple(paper.tile_ids), (), {10: swapped})
+    pipeline = InspectionPipeline(paper, None, InspectionSettings())
+    simulator = KinectSimulator(seed=12)
+    rng = np.random.default_rng(11)
+    flagged_views = 0
+    for bearing in (60.0, 90.0, 120.0):
+        view = view_from(scene.centre, math.radians(bearing), 1.0, rng)
+        result = pipeline.inspect(simulator.scan(scene.kinect_scene, view.camera), OverheadPose(*view.overhead))
+        assert result.ok, result.reason
+        states = result.by_id()
+        flagged_views += states[10].state == TileState.MISPLACED
+        assert [t for t, s in states.items() if s.state == TileState.MISPLACED and t != 10] == []
+    assert flagged_views >= 2
 
 
 def test_something_else_there_needs_a_good_share_of_points_standing_clear_of_the_tile() -> None:

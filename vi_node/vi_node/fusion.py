@@ -6,12 +6,16 @@ it. Tiles can be removed while the structure is built: when a scan's own pixels 
 other way than the fused decision (most of them see through a tile fused present, or agree with a
 tile fused missing), even too few of them to decide alone, the old evidence is dropped and the new
 scan counts alone: the tile is undetermined until new views decide it (a tile
-seen present and later seen missing is reported missing, and not present in between). A present
+seen present and later seen missing is reported missing, and not present in between). A tile
+fused missing that one scan then sees present is undetermined until a second view agrees: tiles
+do not come back by themselves (a robot re-placing one reports it, and it starts afresh), and a
+clutter box shaped like the missing block fit a 20-degree-off alignment that made it look present. A present
 verdict also needs the latest view not to be split: when a scan's pixels of the tile lean neither way,
 the older views do not vouch for it and it is undetermined until a view settles it. A scan that
 glimpses a decided tile with too few pixels to lean either way leaves it as it is: its stale decision
 is not reported as a new observation. A tile that is (re)placed starts afresh. A tile found
-misplaced stays so until a scan sees it present and in place; a later scan that does not flag it
+misplaced stays so until a scan sees it present and in place, or sees its place empty without
+finding it moved nearby (then it is missing); a later scan that does not flag it
 itself reports it with the counts of the scan that did, so that the flag is not taken for a new,
 independent observation (`scan_freshness`): one misaligned scan flagged an octagon moved 3.6 cm, and
 every later view repeated it until the auction node had it confirmed from two camera positions.
@@ -93,8 +97,10 @@ class TileFusion:
             elif fused.state in RESOLVED and int(mine.observed[0]) < MIN_LEANING_PIXELS:
                 continue  # a glimpse: says nothing about a decided tile
             elif fused.state in RESOLVED and self._leaning(mine) not in (None, fused.state):
-                # the tile changed: this scan counts alone
-                fused = FusedTile(mine, scan_state, largest_view=int(mine.judged[0]))
+                # the tile changed: this scan counts alone; a missing tile does not come back by
+                # itself (a re-placed one starts afresh), so one view of it there waits for another
+                back = fused.state == TileState.MISSING and scan_state == TileState.PRESENT
+                fused = FusedTile(mine, TileState.OCCLUDED if back else scan_state, largest_view=int(mine.judged[0]))
             else:
                 fused.evidence = fused.evidence + mine
                 fused.largest_view = max(fused.largest_view, int(mine.judged[0]))
@@ -110,6 +116,11 @@ class TileFusion:
                     fused.misplaced, fused.offset, fused.residual = True, offset, residual
                 elif scan_state == TileState.PRESENT:  # seen in place: whatever moved it was put right
                     fused.misplaced, fused.offset, fused.flagged_counts = False, (0.0, 0.0, 0.0), None
+            if scan_state == TileState.MISSING and not (misplacement and misplacement.get(tile_id, (False,))[0]):
+                # its place seen empty, and nothing of it found moved nearby: missing, whatever an
+                # older view flagged (a removed trapezoid flagged once stayed "misplaced" for 2 minutes,
+                # and neither its re-placement nor a repair was ever asked for)
+                fused.misplaced, fused.offset, fused.flagged_counts = False, (0.0, 0.0, 0.0), None
             self.tiles[tile_id] = fused
         return {t: self.tiles[t] for t in ids}
 

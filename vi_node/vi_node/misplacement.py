@@ -47,6 +47,7 @@ class MisplacementSettings:
     sticking_out: float = 0.015  # m off its faces: a point of the tile's own that its planned shape does not explain
     sticking_out_share: float = 0.25  # something else lies there when this share of its points stick out ...
     sticking_out_points: int = 20  # ... and at least this many
+    reach_over: float = 0.07  # m beside a tile: a long rectangle swapped for a square reaches 6.5 cm past it
     settled_median: float = 0.004  # m, a refit from "in place" leaving a smaller median distance needs no
     # other start ...
     start_turns: tuple[float, ...] = (math.radians(20.0), math.radians(35.0))  # ... else also from these
@@ -160,13 +161,60 @@ def _sticking_out(
     settings: MisplacementSettings,
 ) -> NDArray[np.int64]:
     """Per tile: its points clear of its faces at its own height (a point above a tile's top is
-    something resting on it, not part of it), which no refit explained."""
+    something resting on it, not part of it), and those reaching over its neighbours beside it,
+    which no refit explained."""
     owner = owners.owner
     tile = np.minimum(owner, len(patches) - 1)
     z = scan.points[:, 2]
     level = (z >= patches.tile_low[tile, 2] - 0.005) & (z <= patches.tile_high[tile, 2] + 0.005)
     out = (owners.distance > settings.sticking_out) & level & ~claimed
-    return np.bincount(owner[out], minlength=len(patches) + 1)[:-1]
+    own = np.bincount(owner[out], minlength=len(patches) + 1)[:-1]
+    return own + _reaching_over(scan, patches, claimed, settings)
+
+
+def _reaching_over(
+    scan: ScanPoints, patches: PlanarPatches, claimed: NDArray[np.bool_], settings: MisplacementSettings,
+) -> NDArray[np.int64]:
+    """Per tile: points at its own height within `reach_over` beside it, clear of every expected face and
+    standing over the structure (above the top of a tile whose footprint box holds them). No
+    expected tile explains them, and only something resting at that tile's place can hold them up
+    there: a long rectangle where a 4 cm square was planned reaches over the tops of the square's
+    lower neighbours, 2 cm above them (clutter on the floor never stands over the structure). A
+    point beside several tiles counts for the smallest of them."""
+    count = len(patches)
+    gap = scan.points - scan.closest
+    clear = (np.einsum("ij,ij->i", gap, gap) > settings.sticking_out**2) & ~claimed
+    if count == 0 or not clear.any():
+        return np.zeros(count, dtype=np.int64)
+    points = scan.points[clear]
+    low, high = patches.tile_low[None, :, :], patches.tile_high[None, :, :]
+    outside = np.maximum(0.0, np.maximum(low[..., :2] - points[:, None, :2], points[:, None, :2] - high[..., :2]))
+    beside = np.hypot(outside[..., 0], outside[..., 1])
+    z = points[:, None, 2]
+    under = np.where(beside == 0.0, high[..., 2], -np.inf).max(axis=1)  # the structure's top below each point
+    over = z[:, 0] > under + settings.sticking_out
+    points, beside, z = points[over], beside[over], z[over]
+    top = _tops(points)
+    points, beside, z = points[top], beside[top], z[top]
+    level = (z > low[..., 2] + 0.005) & (z <= high[..., 2] + 0.005)  # the tile's body, not what rests on it
+    within = level & (beside <= settings.reach_over)
+    # of the tiles beside such a point, the smallest: a tile of the wrong type covers the planned
+    # tile's place and more, so it is the small one that was swapped for something bigger
+    area = np.prod(patches.tile_high[:, :2] - patches.tile_low[:, :2], axis=1)
+    smallest = np.argmin(np.where(within, area[None, :], np.inf), axis=1)
+    held = within.any(axis=1)
+    return np.bincount(smallest[held], minlength=count)
+
+
+def _tops(points: Array, radius: float = 0.01, rise: float = 0.01) -> NDArray[np.bool_]:
+    """Which of `points` have none of the others within `radius` beside them and `rise` higher: the
+    tops of what stands there (the side of a tile resting on the next layer reaches down to a lower
+    tile's height, its top does not)."""
+    if len(points) > 4000:  # that much unexplained over the structure is no tile: none counts
+        return np.zeros(len(points), dtype=bool)
+    apart = np.hypot(points[:, None, 0] - points[None, :, 0], points[:, None, 1] - points[None, :, 1])
+    higher = points[None, :, 2] > points[:, None, 2] + rise
+    return ~np.any((apart <= radius) & higher, axis=1)
 
 
 def something_else_there(fit: TileFit, settings: MisplacementSettings) -> bool:
