@@ -88,6 +88,23 @@ def test_false_calls_count_fresh_judgements_and_auctions_for_tiles_in_place() ->
     assert false_missing_calls(record()) == [{"t": 90.0, "tile": 9}, {"t": 120.0, "tile": 7}]
 
 
+def test_a_tile_lying_wrong_called_missing_is_no_false_negative_of_a_present_tile() -> None:
+    """A wrong tile smaller than the planned one leaves most of its place empty: called missing, it
+    is counted apart (a robot sent to re-place it finds it in the way and has it repaired), and its
+    scans are no judgements of a tile lying right."""
+    r = TrialRecord(trial=1, seed=1, removals_planned=0)
+    r.events = [WorldEvent(10.0, "placed", 11), WorldEvent(10.0, "misplaced", 11, misplacement="wrong_type"),
+                WorldEvent(10.0, "placed", 12), WorldEvent(50.0, "taken_off", 11), WorldEvent(70.0, "placed", 11)]
+    r.announcements = [Announcement(30.0, 1, 11, REASON_MISSING), Announcement(80.0, 2, 11, REASON_MISSING)]
+    r.scans = [Scan(29.0, {11: "missing", 12: "present"}, fresh=frozenset({11, 12})),
+               Scan(79.0, {11: "missing"}, fresh=frozenset({11}))]
+    stats = detection_stats(r)
+    assert (stats.present_called_missing, stats.wrong_called_missing) == (1, 1)  # the call at 80 s: it lay right
+    assert (stats.present_judgements, stats.present_judged_missing) == (2, 1)  # 12 at 29 s, 11 at 79 s
+    assert false_missing_calls(r) == [{"t": 80.0, "tile": 11}]
+    assert false_missing_calls(r, lying_wrong=True) == [{"t": 30.0, "tile": 11}]
+
+
 def test_a_tile_carried_to_a_place_already_taken_counts_as_a_duplicate_and_an_absent_tile_as_lost() -> None:
     r = record()
     assert duplicate_placements(r) == []

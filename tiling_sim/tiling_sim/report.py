@@ -101,6 +101,7 @@ def detection_table(result: ExperimentResult) -> list[str]:
         ["  present or misplaced (false positives)", str(stats.left_present), str(PAPER["missing_called_present"])],
         ["false negatives: auction for a present tile", str(stats.present_called_missing),
          str(PAPER["present_called_missing"])],
+        ["  (beyond the paper) for a tile lying wrong", str(stats.wrong_called_missing), "-"],
         ["who found a removed tile first (beyond the paper):", "", ""],
         ["  inspection (its call opened the auction)", str(stats.detected), "-"],
         ["  a robot placing a tile on it", str(stats.found_by_robot), "-"],
@@ -395,6 +396,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "present_tiles_called_missing": stats.present_tiles_called_missing,
             "missing_called_present": stats.missing_called_present,
             "present_called_missing": stats.present_called_missing,
+            "wrong_called_missing": stats.wrong_called_missing,
             "auctions": len(record.awards), "award_latencies": record.award_latencies,
             "award_latency_p50": percentile(record.award_latencies, 50),
             "award_latency_p95": percentile(record.award_latencies, 95),
@@ -417,6 +419,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
                 for o in removal_outcomes(record)
             ],
             "false_missing_calls": false_missing_calls(record),
+            "wrong_tiles_called_missing": false_missing_calls(record, lying_wrong=True),
             "wrong_landings_asked": record.wrong_landings_planned,
             "misplacements": [o.as_dict() for o in misplacement_outcomes(record)],
             "false_repairs": len(false_repairs(record)),

@@ -154,6 +154,10 @@ class TrialRecord:
     def present_at(self, tile: int, t: float, intervals: dict[int, list[tuple[float, float]]]) -> bool:
         return any(a <= t < b for a, b in intervals.get(tile, []))
 
+    def lying_wrong_at(self, tile: int, t: float) -> bool:
+        """Whether `tile` lay shifted, turned or of the wrong type at `t` (landed so, not yet taken off)."""
+        return any(landing.tile == tile and landing.t <= t < gone for landing, gone in wrong_stays(self))
+
     def removals(self) -> list[WorldEvent]:
         return [e for e in self.events if e.kind == "removed"]
 
@@ -244,7 +248,8 @@ class DetectionStats:
     reported_missing: int = 0  # "detected"
     reported_nothing: int = 0  # "undetermined": no scan saw it, or only undetermined
     left_present: int = 0  # "false positives": last reported present (or misplaced)
-    present_called_missing: int = 0  # "false negatives": auctions opened for tiles that were there
+    present_called_missing: int = 0  # "false negatives": auctions opened for tiles that were there, lying right
+    wrong_called_missing: int = 0  # auctions opened as missing for tiles lying wrong (misplaced: repaired later)
     # who found each removed tile first
     detected: int = 0  # inspection: its call opened the auction
     found_by_robot: int = 0  # a robot placing a tile on it, before inspection did
@@ -259,7 +264,7 @@ class DetectionStats:
 
     def add(self, other: DetectionStats) -> None:
         for name in ("removed", "reported_missing", "reported_nothing", "left_present", "present_called_missing",
-                     "detected", "found_by_robot", "undetermined", "missing_called_present",
+                     "wrong_called_missing", "detected", "found_by_robot", "undetermined", "missing_called_present",
                      "present_tiles_called_missing", "present_judgements", "present_judged_missing"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.detection_delays += other.detection_delays
@@ -320,11 +325,15 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
             stats.missing_called_present += 1
     for announcement in record.announcements:
         if announcement.reason == REASON_MISSING and record.present_at(announcement.tile, announcement.t, intervals):
-            stats.present_called_missing += 1
+            if record.lying_wrong_at(announcement.tile, announcement.t):
+                stats.wrong_called_missing += 1
+            else:
+                stats.present_called_missing += 1
     called_missing: set[tuple[int, float]] = set()
     for scan in record.scans:
         for tile, state in scan.states.items():
-            if tile in scan.fresh and record.present_at(tile, scan.t, intervals):
+            if tile in scan.fresh and record.present_at(tile, scan.t, intervals) and not record.lying_wrong_at(
+                    tile, scan.t):
                 stats.present_judgements += 1
                 stats.present_judged_missing += state == MISSING
                 if state == MISSING:
@@ -334,13 +343,15 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
     return stats
 
 
-def false_missing_calls(record: TrialRecord) -> list[dict[str, float]]:
-    """Auctions opened for tiles that were physically in place: when, which tile."""
+def false_missing_calls(record: TrialRecord, lying_wrong: bool = False) -> list[dict[str, float]]:
+    """Auctions opened as missing for tiles that were physically in place and lying right (with
+    `lying_wrong`: for tiles lying shifted, turned or of the wrong type instead): when, which tile."""
     intervals = record.presence_intervals()
     return [
         {"t": a.t, "tile": a.tile}
         for a in record.announcements
         if a.reason == REASON_MISSING and record.present_at(a.tile, a.t, intervals)
+        and record.lying_wrong_at(a.tile, a.t) == lying_wrong
     ]
 
 
