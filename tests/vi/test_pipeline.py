@@ -264,24 +264,3 @@ def test_everything_removed_gives_no_states() -> None:
     result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
     assert not result.ok and result.tiles == []
 
-
-def test_a_fit_beyond_the_overhead_errors_gives_way_to_a_believable_one_nearly_as_good() -> None:
-    """A view of two tiles fit about as well 8 cm / 4 deg off (the team's recorded scans): the fit
-    whose correction the overhead errors cannot explain would fail the scan's checks, so the
-    believable one explaining nearly as many points, and the depth image nearly as well, goes first;
-    one explaining far fewer points, or the depth image clearly less, does not."""
-    pipeline = InspectionPipeline(structure(), None, DEFAULT)
-    prior = np.eye(4)
-    believable, beyond = np.eye(4), np.eye(4)
-    believable[:2, 3] = (0.04, 0.02)
-    beyond[:2, 3] = (0.10, 0.04)
-    start = np.eye(4)
-    fits = [(195, start, beyond), (194, start, believable)]
-    same = {id(beyond): 73.0, id(believable): 72.0}
-    less = {id(beyond): 419.0, id(believable): 347.0}  # a low close view whose fits were all wrong
-    assert pipeline._believable_first(fits, prior, lambda pose: same[id(pose)])[0][2] is believable
-    assert pipeline._believable_first(fits, prior, lambda pose: less[id(pose)])[0][2] is beyond
-    fewer = [(195, start, beyond), (120, start, believable)]
-    assert pipeline._believable_first(fewer, prior, lambda pose: same[id(pose)])[0][2] is beyond
-    right = [(195, start, believable), (194, start, beyond)]
-    assert pipeline._believable_first(right, prior, lambda pose: same[id(pose)])[0][2] is believable

@@ -359,7 +359,6 @@ class InspectionPipeline:
         if not fits:
             return poses[:1], ""
         fits.sort(key=lambda fit: -fit[0])
-        fits = self._believable_first(fits, scan.prior, agreement=lambda refined: self._agreement(scan, refined))
         count, start, refined = fits[0]
         if count < s.min_fit_points:
             return [start], f"alignment failed: only {count} points fit S_a's surfaces"
@@ -373,26 +372,6 @@ class InspectionPipeline:
                 starts.append(elsewhere)
         scan.timer.lap("view agreement")
         return starts, ""
-
-    def _believable_first(
-        self, fits: list[tuple[int, Array, Array]], prior: Array, agreement: Callable[[Array], float]
-    ) -> list[tuple[int, Array, Array]]:
-        """`fits` (most points on S_a first), the best believable one first when it puts nearly as
-        many points on S_a as the best and the depth image bears it out nearly as well (`agreement`
-        of a refined pose): a view of two tiles fit about as well 8 cm and 4 degrees off, and the fit
-        beyond the overhead errors failed the scan's checks. A believable fit the depth image bears
-        out clearly less is no better than the one beyond belief (a low close view whose fits were
-        all wrong): the scan fails."""
-        s = self.settings
-        if not _beyond_belief(fits[0][2], prior, s):
-            return fits
-        best = agreement(fits[0][2])
-        for k, (count, _, refined) in enumerate(fits):
-            if count >= s.ambiguity * fits[0][0] and not _beyond_belief(refined, prior, s):
-                if agreement(refined) >= best - (1.0 - s.ambiguity) * abs(best):
-                    return [fits[k], *fits[:k], *fits[k + 1:]]
-                return fits
-        return fits
 
     def _short_fit(self, scan: _Scan, start: Array, sample: Array, pose: Array) -> tuple[int, Array, Array] | None:
         """(points of `sample` within 3 mm of S_a's surfaces, `start`, the pose a short ICP refines
