@@ -263,4 +263,3 @@ def test_everything_removed_gives_no_states() -> None:
     cloud = KinectSimulator(seed=21).scan(scene.kinect_scene, view.camera)
     result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
     assert not result.ok and result.tiles == []
-

@@ -154,9 +154,9 @@ class TrialRecord:
     def present_at(self, tile: int, t: float, intervals: dict[int, list[tuple[float, float]]]) -> bool:
         return any(a <= t < b for a, b in intervals.get(tile, []))
 
-    def lying_wrong_at(self, tile: int, t: float) -> bool:
-        """Whether `tile` lay shifted, turned or of the wrong type at `t` (landed so, not yet taken off)."""
-        return any(landing.tile == tile and landing.t <= t < gone for landing, gone in wrong_stays(self))
+    def lying_wrong_at(self, tile: int, t: float, stays: list[tuple[WorldEvent, float]]) -> bool:
+        """Whether `tile` lay shifted, turned or of the wrong type at `t` (of `wrong_stays`)."""
+        return any(landing.tile == tile and landing.t <= t < gone for landing, gone in stays)
 
     def removals(self) -> list[WorldEvent]:
         return [e for e in self.events if e.kind == "removed"]
@@ -323,9 +323,10 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
             stats.undetermined += 1
         if outcome.called_present:
             stats.missing_called_present += 1
+    stays = wrong_stays(record)
     for announcement in record.announcements:
         if announcement.reason == REASON_MISSING and record.present_at(announcement.tile, announcement.t, intervals):
-            if record.lying_wrong_at(announcement.tile, announcement.t):
+            if record.lying_wrong_at(announcement.tile, announcement.t, stays):
                 stats.wrong_called_missing += 1
             else:
                 stats.present_called_missing += 1
@@ -333,7 +334,7 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
     for scan in record.scans:
         for tile, state in scan.states.items():
             if tile in scan.fresh and record.present_at(tile, scan.t, intervals) and not record.lying_wrong_at(
-                    tile, scan.t):
+                    tile, scan.t, stays):
                 stats.present_judgements += 1
                 stats.present_judged_missing += state == MISSING
                 if state == MISSING:
@@ -346,12 +347,12 @@ def detection_stats(record: TrialRecord) -> DetectionStats:
 def false_missing_calls(record: TrialRecord, lying_wrong: bool = False) -> list[dict[str, float]]:
     """Auctions opened as missing for tiles that were physically in place and lying right (with
     `lying_wrong`: for tiles lying shifted, turned or of the wrong type instead): when, which tile."""
-    intervals = record.presence_intervals()
+    intervals, stays = record.presence_intervals(), wrong_stays(record)
     return [
         {"t": a.t, "tile": a.tile}
         for a in record.announcements
         if a.reason == REASON_MISSING and record.present_at(a.tile, a.t, intervals)
-        and record.lying_wrong_at(a.tile, a.t) == lying_wrong
+        and record.lying_wrong_at(a.tile, a.t, stays) == lying_wrong
     ]
 
 

@@ -576,8 +576,10 @@ class InspectionPipeline:
         scan.timer.lap("check alignment")
         if inliers < s.min_alignment_points or inliers < s.min_alignment_inliers * points:
             return f"alignment failed: ICP kept only {inliers} of {points} points on S_a"
-        if _beyond_belief(pose, scan.prior, s):
-            shift, turn = _correction(pose, scan.prior)
+        shift = float(np.linalg.norm(pose[:2, 3] - scan.prior[:2, 3]))
+        turn = abs(_yaw(pose) - _yaw(scan.prior))
+        turn = min(turn, 2 * math.pi - turn)
+        if shift > s.max_pose_correction or turn > s.max_yaw_correction:
             return (
                 f"alignment failed: the correction of the overhead pose ({shift * 100:.0f} cm, "
                 f"{math.degrees(turn):.0f} deg) is beyond belief"
@@ -835,18 +837,6 @@ def _cloud_problem(cloud: object) -> str:
     if np.count_nonzero(np.isfinite(cloud[::4, ::4, 2])) == 0:
         return "bad cloud: no valid points (all NaN or empty)"
     return ""
-
-
-def _correction(pose: Array, prior: Array) -> tuple[float, float]:
-    """How far (m) and how much (rad, about z) `pose` corrects the overhead `prior`."""
-    turn = abs(_yaw(pose) - _yaw(prior))
-    return float(np.linalg.norm(pose[:2, 3] - prior[:2, 3])), min(turn, 2 * math.pi - turn)
-
-
-def _beyond_belief(pose: Array, prior: Array, settings: InspectionSettings) -> bool:
-    """Whether `pose` corrects the overhead `prior` by more than its error bounds allow."""
-    shift, turn = _correction(pose, prior)
-    return shift > settings.max_pose_correction or turn > settings.max_yaw_correction
 
 
 def _shifted(pose: Array, shift: Array) -> Array:
