@@ -29,7 +29,7 @@ from vi_helpers import REPO, SCANS, STRUCTURES, ros2_command, ros2_run, structur
 from visualization_msgs.msg import MarkerArray
 
 from tiling_assembly.messages import structure_to_msg
-from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, TileStateArray
+from tiling_assembly_msgs.msg import AuctionAnnouncement, PlacementReport, RobotStatus, TileStateArray
 from tiling_sim.inspection_scenarios import Scene, ViewSettings, robots_beside, view_from
 from tiling_sim.kinect import KinectSimulator
 from tiling_sim.scan_bag import ScanBagWriter, read_truth
@@ -378,3 +378,38 @@ def test_scans_are_inspected_while_the_simulated_clock_stands_still(probe: Probe
         assert probe.spin_until(lambda: len(probe.states) == 2, 20), probe.diagnostics
         assert [m.problem for m in probe.states] == ["", ""]
         assert node.poll() is None
+
+
+def test_a_tile_a_robot_is_placing_is_expected_not_judged(probe: Probe, tmp_path: Path) -> None:
+    """Square 10 lies on the structure before its robot reports it placed. Offline, without the
+    team's statuses, its points make rectangle 11 look like a tile of the wrong type; vi_node hears
+    the robot placing 10 on /robot_status and says nothing of either."""
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), ())
+    view = view_from(scene.centre, 0.0, 1.0, np.random.default_rng(5))
+    bag = tmp_path / "unreported"
+    with ScanBagWriter(bag) as writer:
+        writer.write_pose(100 * 10**9 - 5_000_000, *view.overhead)
+        writer.write_scan(100 * 10**9, KinectSimulator(seed=6).scan(scene.kinect_scene, view.camera))
+    reported = [t for t in paper.tile_ids if t != 10]
+    offline_states = offline(str(bag), "--expected", ",".join(map(str, reported)))
+    assert offline_states[0]["tiles"]["11"]["state"] == "misplaced"
+
+    placing = RobotStatus(robot_name="robot1", state=RobotStatus.PLACING, current_tile=10)
+    placing.header.stamp.sec = 98
+    status = probe.node.create_publisher(RobotStatus, "/robot_status", 10)
+    probe.node.create_timer(0.2, lambda: status.publish(placing))
+    with vi_node(probe, "sensor_reliability:=reliable") as node:
+        assert probe.spin_until(lambda: probe.node.count_subscribers("/robot_status") > 0, 30), "vi_node did not start"
+        probe.structure.publish(structure_to_msg(paper))
+        for tile in reported:
+            probe.reports.publish(PlacementReport(tile_id=tile, outcome=PlacementReport.OUTCOME_PLACED,
+                                                  robot_name="robot1"))
+        probe.spin_until(lambda: False, 1.0)
+        result = replay(probe, str(bag))
+        assert result.returncode == 0, result.stderr
+        assert probe.spin_until(lambda: len(probe.states) >= 1, 30), probe.diagnostics
+        assert node.poll() is None
+    states = {s.tile_id: STATE_NAMES.get(s.state) for s in probe.states[-1].states}
+    assert sorted(states) == reported
+    assert "misplaced" not in states.values(), states

@@ -93,6 +93,10 @@ class TileEvidence:
         s = slice(index, index + 1)
         return TileEvidence(**{f.name: getattr(self, f.name)[s] for f in fields(self)})
 
+    def select(self, keep: NDArray[np.bool_]) -> TileEvidence:
+        """The evidence of the tiles `keep` marks."""
+        return TileEvidence(**{f.name: getattr(self, f.name)[keep] for f in fields(self)})
+
 
 def depth_tolerance(
     depth: NDArray[np.float32], cos_incidence: NDArray[np.float32], settings: EvidenceSettings

@@ -3,7 +3,7 @@
 Run in the VI robot's namespace (`ros2 run vi_node vi_node --ros-args -r __ns:=/vi --params-file
 config/vi_node.yaml`). Subscribes `camera/depth/points` (sensor_msgs/PointCloud2, organized,
 camera_depth_optical_frame) and `overhead_pose` (geometry_msgs/PoseStamped, map), and the team's
-`/structure`, `/placement_reports` and `/auction/announcements`, and the `overhead_pose` of every
+`/structure`, `/placement_reports`, `/auction/announcements` and `/robot_status`, and the `overhead_pose` of every
 other robot (`/<robot>/overhead_pose`: those named in `other_robots`, or every one that appears; the
 inspection leaves out what they hide); publishes `/tile_states`
 (one TileStateArray per classified scan, `robot_name` this robot's namespace: several VI robots
@@ -13,7 +13,8 @@ share the topic), `/tile_markers` (tiles coloured by state, for RViz) and
 S_a: the tiles claimed placed (PlacementReport OUTCOME_PLACED) of the structure on `/structure`;
 until a structure / a report arrives, the `structure_file` and `expected_tiles` parameters. A tile
 announced in an auction leaves S_a until a new placement report for it arrives; a tile announced for
-repair stays until its robot reports it taken off. Each scan is paired
+repair stays until its robot reports it taken off. A tile a robot was placing shortly before a scan
+may lie there unreported: expected, but not judged (`tiles_in_hand`). Each scan is paired
 with the overhead pose nearest in time; only the latest scan is kept while one is processed (the
 camera is faster than the inspection can be on a bad day: old scans are dropped, not queued).
 """
@@ -43,10 +44,12 @@ from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.msg import (
     AuctionAnnouncement,
     PlacementReport,
+    RobotStatus,
     Structure,
     TileState,
     TileStateArray,
 )
+from tiling_ros import team_topics as topics
 from tiling_ros.parameters import declare_settings
 from tiling_ros.point_clouds import CloudError, cloud_from_msg
 from tiling_ros.qos import LATCHED, sensor_stream
@@ -61,6 +64,7 @@ from vi_node.pipeline import InspectionPipeline, InspectionStoppedError
 from vi_node.pose_matching import PoseBuffer, TeamPoses
 from vi_node.pose_prior import OverheadPose
 from vi_node.scan_result import ScanResult
+from vi_node.tiles_in_hand import TilesInHand
 
 OPTICAL_FRAME = "camera_depth_optical_frame"
 COLOURS = {  # RViz colours of the tile states
@@ -100,6 +104,7 @@ class ViNode(Node):
         self.news_lock = threading.Lock()
         self.expected_changed = False
         self.to_forget: list[int] = []
+        self.in_hand = TilesInHand(int(self.settings.in_hand_memory * 1e9))
         self.pipeline: InspectionPipeline | None = None
         self.fusion = TileFusion()
         self.poses = PoseBuffer()
@@ -117,6 +122,7 @@ class ViNode(Node):
         self.create_subscription(Structure, "/structure", self._on_structure, LATCHED)
         self.create_subscription(PlacementReport, "/placement_reports", self._on_report, 100)
         self.create_subscription(AuctionAnnouncement, "/auction/announcements", self._on_announcement, 50)
+        topics.ROBOT_STATUS.subscribe(self, self._on_robot_status)
         self.states_pub = self.create_publisher(TileStateArray, "/tile_states", 10)
         self.markers_pub = self.create_publisher(MarkerArray, "/tile_markers", 10)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -203,6 +209,16 @@ class ViNode(Node):
                 self.placed.pop(tile_id, None)
             self.to_forget.append(tile_id)
             self.expected_changed = True
+
+    def _on_robot_status(self, msg: RobotStatus) -> None:
+        with self.news_lock:
+            self.in_hand.heard(msg.state == RobotStatus.PLACING, int(msg.current_tile),
+                               stamp_to_nanoseconds(msg.header.stamp))
+
+    def _tiles_in_hand(self, stamp: int) -> frozenset[int]:
+        with self.news_lock:
+            self.in_hand.forget_before(stamp)
+            return self.in_hand.at(stamp, self._expected_ids() or ())
 
     def _on_announcement(self, msg: AuctionAnnouncement) -> None:
         if msg.reason == AuctionAnnouncement.REASON_MISPLACED:
@@ -344,6 +360,9 @@ class ViNode(Node):
         except CloudError as error:
             self._unclassified(msg, DiagnosticStatus.ERROR, f"dropped a scan: {error}")
             return
+        in_hand = self._tiles_in_hand(stamp_to_nanoseconds(msg.header.stamp))
+        if in_hand != self.pipeline.in_hand:
+            self.pipeline.set_expected(self.pipeline.expected_ids, in_hand)
         try:
             result = self.pipeline.inspect(cloud, overhead, robots, stop_requested=lambda: self.closing)
         except InspectionStoppedError:

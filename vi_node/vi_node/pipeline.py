@@ -171,15 +171,21 @@ class InspectionPipeline:
         self.robot_settings = settings.robot_mask()
         self.structure_top = float(structure.bounds[1][2])
         self._models: dict[tuple[int, ...], ExpectedModel] = {}
+        self.in_hand: frozenset[int] = frozenset()
         self.model = self._model_for(structure.tile_ids if expected is None else expected)
 
     @property
     def expected_ids(self) -> tuple[int, ...]:
-        return self.model.tile_ids
+        """S_a: the tiles judged (tiles in hand aside)."""
+        return tuple(t for t in self.model.tile_ids if t not in self.in_hand)
 
-    def set_expected(self, expected: Iterable[int]) -> None:
-        """Change S_a (models are cached per S_a, so going back and forth is cheap)."""
-        self.model = self._model_for(expected)
+    def set_expected(self, expected: Iterable[int], in_hand: Iterable[int] = ()) -> None:
+        """Change S_a (models are cached per S_a, so going back and forth is cheap). Tiles `in_hand`
+        (a robot is placing them: `tiles_in_hand`) may be there or not: the model holds them, the
+        result says nothing about them."""
+        expected = set(expected) & set(self.structure.tiles)
+        self.in_hand = frozenset(set(in_hand) & set(self.structure.tiles)) - expected
+        self.model = self._model_for(expected | self.in_hand)
 
     def _model_for(self, expected: Iterable[int]) -> ExpectedModel:
         key = tuple(sorted(set(expected) & set(self.structure.tiles)))
@@ -197,6 +203,13 @@ class InspectionPipeline:
         """Classify every tile of S_a from one organized cloud, the overhead pose of its time and
         the overhead poses of the other robots (default mode: their points are left out).
         `stop_requested` is asked between stages; once it says yes, `InspectionStoppedError` is raised."""
+        result = self._inspect(cloud, overhead, robots, stop_requested)
+        return result.without(self.in_hand)
+
+    def _inspect(
+        self, cloud: NDArray[np.float32], overhead: OverheadPose, robots: Sequence[OverheadPose],
+        stop_requested: Callable[[], bool] | None,
+    ) -> ScanResult:
         scan, failure = self._start(cloud, overhead, stop_requested)
         if scan is None:
             return failure

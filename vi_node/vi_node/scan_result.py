@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Collection
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,3 +68,17 @@ class ScanResult:
     def moved_tiles(self) -> list[int]:
         """Tiles this scan flagged misplaced."""
         return [tile_id for tile_id, (flagged, _, _) in self.misplacement.items() if flagged]
+
+    def without(self, tile_ids: Collection[int]) -> ScanResult:
+        """The result with nothing said about `tile_ids` (tiles the scan expected but may not judge)."""
+        if not tile_ids:
+            return self
+        keep = np.array([t not in tile_ids for t in self.tile_ids], dtype=bool)
+        return replace(
+            self,
+            tiles=[t for t in self.tiles if t.tile_id not in tile_ids],
+            tile_ids=tuple(t for t in self.tile_ids if t not in tile_ids),
+            evidence=None if self.evidence is None else self.evidence.select(keep),
+            evidence_states=None if self.evidence_states is None else self.evidence_states[keep],
+            misplacement={t: m for t, m in self.misplacement.items() if t not in tile_ids},
+        )
