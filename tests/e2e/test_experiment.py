@@ -94,6 +94,10 @@ def test_removed_tile_is_detected_auctioned_and_replaced(experiment, tmp_path: P
     assert replaced, "the removed tile was never placed again"
     won = [d for d in trial["decisions"] if f"for tile {removal['tile']}:" in d and " wins with " in d]
     assert won and replaced[0]["robot"] in won[0]
+    events = json.loads((tmp_path / "report" / "logs" / "trial_01" / "events.json").read_text())
+    (gone,) = [e for e in events if e["kind"] == "removed"]
+    assert gone["tile"] == removal["tile"] and abs(gone["t"] - removal["t"]) < 0.01
+    assert sum(e["kind"] == "placed" for e in events) == len(trial["placements"])
     assert "Every trial finished the structure correctly: yes (1/1)" in result.stdout
     # the plan the trial started from, as the planner gave it (paper_14, 2 robots: 245 s, bound 244 s)
     assert data["lower_bound"] <= data["planned_makespan"] <= 1.05 * data["lower_bound"]

@@ -19,12 +19,13 @@ makespans; and writes a report folder with pictures.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import random
 import shutil
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import rclpy
@@ -269,6 +270,8 @@ class Experiment:
             observer.destroy_node()
             record.unclean_exits = group.stop()
             self.network.restore_links()
+        events = [asdict(e) for e in sorted(record.events, key=lambda e: e.t)]
+        (logs / "events.json").write_text(json.dumps(events, indent=0) + "\n")
         for name, code in record.unclean_exits.items():
             print(f"warning: trial {setup.trial}: {name} did not stop cleanly (exit code {code}); see "
                   f"{logs / (name + '.log')}", file=sys.stderr, flush=True)
