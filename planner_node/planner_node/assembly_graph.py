@@ -185,7 +185,7 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
     cost = np.array([time_model.handling_time(t.type_name) + 2.0 * trip for t, trip in zip(tiles, travel_list,
                                                                                           strict=True)], dtype=float)
     place = np.array([time_model.place_duration(t.type_name) for t in tiles], dtype=float)
-    pick = np.full(n, time_model.pick_time, dtype=float)
+    pick = np.full(n, time_model.pick_duration(), dtype=float)
 
     support_lists = tuple(tuple(index[s] for s in structure.supports[t]) for t in ids)
     dependent_lists = _dependent_lists(support_lists, ids)

@@ -57,6 +57,9 @@ class PlannerParameters:
         _DEFAULT_TIMES.cache_standoff, "How far short of a parts cache a robot base stops, its arm's reach (m)")
     type_place_time: Mapping[str, float] = setting(
         {}, "Place time of a tile of this type (s); types not listed take place_time")
+    cache_crowding: float = setting(
+        _DEFAULT_TIMES.cache_crowding, "Time a pick costs for every robot beyond one per parts cache in use, "
+        "as robots crowding a cache drive round it (s)")
 
     def robots(self) -> list[str]:
         """robot_names when given, else robot1..robotN."""
@@ -80,6 +83,7 @@ class PlannerParameters:
             travel_speed=self.travel_speed,
             cache_standoff=self.cache_standoff,
             type_place_time=dict(self.type_place_time),
+            cache_crowding=self.cache_crowding,
         )
 
     def validate(self) -> None:
@@ -113,6 +117,7 @@ _FIELDS = {
     "place_time": float,
     "travel_speed": float,
     "cache_standoff": float,
+    "cache_crowding": float,
 }
 
 

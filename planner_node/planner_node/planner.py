@@ -214,6 +214,7 @@ def plan_assembly(
     """
     check_robot_names(robot_names)
     n_robots = len(robot_names)
+    time_model = time_model.for_team(structure, n_robots)  # robots crowding the caches cost time
     stopwatch = _Stopwatch()
     with stopwatch.stage("graph"):
         graph = build_graph(structure, time_model)

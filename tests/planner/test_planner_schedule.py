@@ -128,6 +128,27 @@ def test_graph_costs_are_the_time_models() -> None:
     assert graph.n_components == 1
 
 
+def test_robots_beyond_one_per_cache_make_every_pick_dearer() -> None:
+    """The measured interference cost: pyramid_91's tiles use 2 caches; 2 robots crowd neither,
+    4 robots are one too many at each, 3 half a robot; paper_14's 5 caches take 2 robots freely."""
+    pyramid_91 = load_structure(STRUCTURES / "pyramid_91.yaml")
+    paper = load_structure(STRUCTURES / "paper_14.yaml")
+    model = TimeModel(cache_crowding=4.0)
+    assert model.for_team(pyramid_91, 2).crowding_time == 0.0
+    assert model.for_team(pyramid_91, 3).crowding_time == pytest.approx(2.0)
+    assert model.for_team(pyramid_91, 4).crowding_time == pytest.approx(4.0)
+    assert model.for_team(paper, 2).crowding_time == 0.0
+    crowded = model.for_team(pyramid_91, 4)
+    assert crowded.for_team(pyramid_91, 4) == crowded  # not charged twice
+    tile = pyramid_91.tile_ids[0]
+    assert crowded.tile_cost(pyramid_91, tile) == pytest.approx(model.tile_cost(pyramid_91, tile) + 4.0)
+    graph = build_graph(pyramid_91, crowded)
+    assert graph.pick[0] == pytest.approx(crowded.pick_time + 4.0)
+    assert graph.cost[0] == pytest.approx(crowded.tile_cost(pyramid_91, int(graph.tile_ids[0])))
+    with pytest.raises(ValueError, match="cache_crowding"):
+        TimeModel(cache_crowding=-1.0)
+
+
 def test_seeds_are_spread_along_the_exterior_of_a_pyramid() -> None:
     structure = parse_structure(pyramid(91), "pyramid")
     graph = build_graph(structure, TimeModel())

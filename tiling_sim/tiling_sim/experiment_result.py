@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from tiling_assembly.structure import Structure
+from tiling_assembly.time_model import TimeModel
 from tiling_sim.network_plan import NetworkSettings
 from tiling_sim.sim_settings import VI_ROBOT
 from tiling_sim.trial_record import TrialRecord
@@ -60,3 +61,7 @@ class ExperimentResult:
 
     def fault_trials(self) -> list[TrialRecord]:
         return [r for r in self.records if r.trial > 0]
+
+    def time_model(self) -> TimeModel:
+        """The planner's default time model for this team on this structure (crowding at the caches)."""
+        return TimeModel().for_team(self.structure, self.config.robots)

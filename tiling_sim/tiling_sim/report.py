@@ -23,7 +23,6 @@ from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from tiling_assembly.structure import Structure
-from tiling_assembly.time_model import TimeModel
 from tiling_sim.experiment_result import ExperimentConfig, ExperimentResult
 from tiling_sim.plan_vs_execution import account_lines, robot_accounts
 from tiling_sim.trial_record import (
@@ -160,7 +159,7 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
     if baseline:
         lines.append(f"Makespan without faults: {baseline[0]:.0f} s simulated")
         trial0 = next(r for r in result.records if r.trial == 0)
-        lines += account_lines(robot_accounts(trial0, result.structure, TimeModel()),
+        lines += account_lines(robot_accounts(trial0, result.structure, result.time_model()),
                                None if first is None else first.makespan, baseline[0])
     if faulty:
         lines.append(
@@ -423,7 +422,7 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "wrong_landings_asked": record.wrong_landings_planned,
             "misplacements": [o.as_dict() for o in misplacement_outcomes(record)],
             "false_repairs": len(false_repairs(record)),
-            "robot_accounts": [a.as_dict() for a in robot_accounts(record, result.structure, TimeModel())],
+            "robot_accounts": [a.as_dict() for a in robot_accounts(record, result.structure, result.time_model())],
             "decisions": record.decisions,
         })
     first = first_plan(result)
