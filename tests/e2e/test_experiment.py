@@ -226,6 +226,8 @@ def interrupt_a_run(tmp_path: Path, *options: str, nodes: int, running: float,
 
 def test_ctrl_c_stops_the_run_and_leaves_no_process(tmp_path: Path) -> None:
     interrupt_a_run(tmp_path, nodes=5, running=2.0)
+    # what the world saw happen until then is kept
+    assert isinstance(json.loads((tmp_path / "logs" / "trial_00" / "events.json").read_text()), list)
 
 
 def test_runner_failure_leaves_no_process(experiment) -> None:  # type: ignore[no-untyped-def]

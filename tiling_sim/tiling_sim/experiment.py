@@ -110,6 +110,13 @@ def removals_per_trial(total: int, trials: int, seed: int) -> list[int]:
     return counts
 
 
+def _write_events(logs: Path, record: TrialRecord) -> None:
+    """The trial's world events, in simulated time, to `logs`/events.json."""
+    events = [asdict(e) for e in sorted(record.events, key=lambda e: e.t)]
+    logs.mkdir(parents=True, exist_ok=True)
+    (logs / "events.json").write_text(json.dumps(events, indent=0) + "\n")
+
+
 class Experiment:
     def __init__(self, config: ExperimentConfig, network: TeamNetwork | None = None) -> None:
         self.config = config
@@ -223,59 +230,65 @@ class Experiment:
         observer = ExperimentObserver(record, self.config.robot_names)
         executor = SingleThreadedExecutor()
         executor.add_node(observer)
-        with ProcessGroup(log_dir=logs) as group:
-            env = dict(os.environ, TILING_EXPERIMENT_RUN=self.run_id, PYTHONFAULTHANDLER="1")
-            for name, argv in self.node_commands(setup).items():
-                # perception is throughput work: let coordination (auctions, robots) run first
-                group.start(name, self.network.command(name, argv), self.network.environment(name, env),
-                            nice=10 if is_heavy(name, self.config.vi_robot_names) else 0)
-            wall_start = time.monotonic()
-            started_wall = None
-            killed = False
-            while True:
-                executor.spin_once(timeout_sec=0.05)
-                raise_if_signalled()  # a Ctrl-C that a binding swallowed, or turned into another error
-                wall = time.monotonic() - wall_start
-                dead = [n for n in group.dead() if n != self.config.kill_robot]
-                if dead:
-                    record.failure = f"{', '.join(dead)} exited (see {logs})"
-                    break
-                if started_wall is None:
-                    waiting = observer.ready_to_start(self.expected_nodes())
-                    if not waiting:
-                        observer.start()
-                        started_wall = time.monotonic()
-                        record.started_at = 0.0
-                    elif wall > 60.0:
-                        record.failure = f"the nodes did not come up within 60 s: waiting for {', '.join(waiting)}"
-                        break
-                    continue
-                now = observer.now()
-                record.link_changes += self.network.follow_outages(now)
-                placed = sum(1 for e in record.events if e.kind == "placed")
-                removed = sum(1 for e in record.events if e.kind == "removed")
-                out = f", link out: {', '.join(sorted(self.network.out))}" if self.network.out else ""
-                self.show(f"{progress} t={now:6.0f} s simulated, {placed} placements, {removed} removals, "
-                          f"{len(record.announcements)} auctions{out}")
-                if (self.config.kill_robot and not killed
-                        and sum(1 for e in record.events if e.kind == "placed") >= self.config.kill_after_placements):
-                    group.kill(self.config.kill_robot)
-                    killed = True
-                if observer.complete:
-                    break
-                if now > self.sim_limit or time.monotonic() - started_wall > self.wall_limit:
-                    record.timed_out = True
-                    break
-            executor.remove_node(observer)
-            observer.destroy_node()
-            record.unclean_exits = group.stop()
-            self.network.restore_links()
-        events = [asdict(e) for e in sorted(record.events, key=lambda e: e.t)]
-        (logs / "events.json").write_text(json.dumps(events, indent=0) + "\n")
+        try:
+            with ProcessGroup(log_dir=logs) as group:
+                env = dict(os.environ, TILING_EXPERIMENT_RUN=self.run_id, PYTHONFAULTHANDLER="1")
+                for name, argv in self.node_commands(setup).items():
+                    # perception is throughput work: let coordination (auctions, robots) run first
+                    group.start(name, self.network.command(name, argv), self.network.environment(name, env),
+                                nice=10 if is_heavy(name, self.config.vi_robot_names) else 0)
+                self.supervise(group, executor, observer, record, logs, progress)
+                executor.remove_node(observer)
+                observer.destroy_node()
+                record.unclean_exits = group.stop()
+                self.network.restore_links()
+        finally:  # what happened is kept, a trial cut short by Ctrl-C too
+            _write_events(logs, record)
         for name, code in record.unclean_exits.items():
             print(f"warning: trial {setup.trial}: {name} did not stop cleanly (exit code {code}); see "
                   f"{logs / (name + '.log')}", file=sys.stderr, flush=True)
         return record
+
+    def supervise(self, group: ProcessGroup, executor: SingleThreadedExecutor, observer: ExperimentObserver,
+                  record: TrialRecord, logs: Path, progress: str) -> None:
+        """Follow the trial until it completes, a node dies or it runs out of time; start it once
+        every node is up."""
+        wall_start = time.monotonic()
+        started_wall = None
+        killed = False
+        while True:
+            executor.spin_once(timeout_sec=0.05)
+            raise_if_signalled()  # a Ctrl-C that a binding swallowed, or turned into another error
+            wall = time.monotonic() - wall_start
+            dead = [n for n in group.dead() if n != self.config.kill_robot]
+            if dead:
+                record.failure = f"{', '.join(dead)} exited (see {logs})"
+                return
+            if started_wall is None:
+                waiting = observer.ready_to_start(self.expected_nodes())
+                if not waiting:
+                    observer.start()
+                    started_wall = time.monotonic()
+                    record.started_at = 0.0
+                elif wall > 60.0:
+                    record.failure = f"the nodes did not come up within 60 s: waiting for {', '.join(waiting)}"
+                    return
+                continue
+            now = observer.now()
+            record.link_changes += self.network.follow_outages(now)
+            placed = sum(1 for e in record.events if e.kind == "placed")
+            removed = sum(1 for e in record.events if e.kind == "removed")
+            out = f", link out: {', '.join(sorted(self.network.out))}" if self.network.out else ""
+            self.show(f"{progress} t={now:6.0f} s simulated, {placed} placements, {removed} removals, "
+                      f"{len(record.announcements)} auctions{out}")
+            if self.config.kill_robot and not killed and placed >= self.config.kill_after_placements:
+                group.kill(self.config.kill_robot)
+                killed = True
+            if observer.complete:
+                return
+            if now > self.sim_limit or time.monotonic() - started_wall > self.wall_limit:
+                record.timed_out = True
+                return
 
     def show(self, line: str) -> None:
         if not self.config.quiet and sys.stdout.isatty():
