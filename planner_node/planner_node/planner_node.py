@@ -10,7 +10,8 @@ one-line message; the current plan stays.
 
 Parameters (defaults in config/planner_node.yaml): structure_file, num_robots or robot_names,
 method, improve_time_limit, help_neighbours, and the time model pick_time, place_time, travel_speed,
-cache_standoff, cache_crowding and type_place_time.<tile type>. A bad value or structure file: one line on stderr, exit code 2.
+cache_standoff, cache_crowding and type_place_time.<tile type>. A bad value or structure file: one line
+on stderr, exit code 2.
 """
 
 from __future__ import annotations
