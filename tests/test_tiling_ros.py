@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -137,3 +138,34 @@ def test_a_value_of_another_type_is_refused_unless_typing_is_dynamic(context: rc
         assert node.describe_parameter("retries").dynamic_typing
     finally:
         node.destroy_node()
+
+
+def test_a_busy_reader_hears_every_robots_heartbeat(context: rclpy.Context) -> None:
+    """/robot_status has no key: its writers share one history at the reader. Eight robots'
+    heartbeats arriving between two takes of a busy reader must all be there, not only the last."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    from tiling_assembly_msgs.msg import RobotStatus
+    from tiling_ros import team_topics as topics
+
+    writers = rclpy.create_node("robots", context=context)
+    reader = rclpy.create_node("auctioneer", context=context)
+    heard: list[str] = []
+    try:
+        publishers = [topics.ROBOT_STATUS.publisher(writers) for _ in range(8)]
+        topics.ROBOT_STATUS.subscribe(reader, lambda msg: heard.append(msg.robot_name))
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(reader)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and reader.count_publishers("/robot_status") < 8:
+            executor.spin_once(timeout_sec=0.05)
+        for _ in range(5):  # the reader takes nothing while every robot sends one heartbeat
+            for k, publisher in enumerate(publishers):
+                publisher.publish(RobotStatus(robot_name=f"robot{k + 1}"))
+            time.sleep(0.1)
+            for _ in range(20):
+                executor.spin_once(timeout_sec=0.0)
+        assert {name: heard.count(name) for name in set(heard)} == {f"robot{k + 1}": 5 for k in range(8)}
+    finally:
+        writers.destroy_node()
+        reader.destroy_node()

@@ -21,8 +21,11 @@ REPORTS = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL, re
 COORDINATION = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 # /auction/decisions: one line per decision, kept for a late reader
 DECISIONS = QoSProfile(depth=200, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-# reading /robot_status and /auction/status: only the latest heartbeat counts
-HEARTBEATS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+# reading /robot_status and /auction/status: the latest heartbeats count. The topic has no key, so its
+# writers share one history: at depth 1, of 8 robots' heartbeats that came between two takes of a busy
+# reader only the last robot's was left, and the others looked dead (an 8-robot trial on 2 cores lost
+# robot5 7 times, each time a replan and another when it was "back"). Room for every robot's.
+HEARTBEATS = QoSProfile(depth=64, reliability=ReliabilityPolicy.BEST_EFFORT)
 # reading announcements, awards, bids and acceptances: each is sent again until answered
 REPEATED = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
 
