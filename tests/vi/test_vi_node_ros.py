@@ -413,3 +413,33 @@ def test_a_tile_a_robot_is_placing_is_expected_not_judged(probe: Probe, tmp_path
     states = {s.tile_id: STATE_NAMES.get(s.state) for s in probe.states[-1].states}
     assert sorted(states) == reported
     assert "misplaced" not in states.values(), states
+
+
+def test_a_tile_reported_placed_after_the_scan_was_taken_is_not_judged_by_it(probe: Probe, tmp_path: Path) -> None:
+    """Square 10 lands just after the scan; its report (stamped later) reaches vi_node before the
+    scan is judged. Judged against S_a with 10 in it, the scan says 10 is missing; a scan taken
+    before a report does not judge the tile it reports."""
+    paper = structure()
+    scene = Scene(paper, tuple(paper.tile_ids), (10,))
+    view = view_from(scene.centre, math.radians(90.0), 1.0, np.random.default_rng(5))
+    bag = tmp_path / "before_the_report"
+    with ScanBagWriter(bag) as writer:
+        writer.write_pose(100 * 10**9 - 5_000_000, *view.overhead)
+        writer.write_scan(100 * 10**9, KinectSimulator(seed=6).scan(scene.kinect_scene, view.camera))
+    assert offline(str(bag))[0]["tiles"]["10"]["state"] == "missing"
+
+    with vi_node(probe, "sensor_reliability:=reliable") as node:
+        assert probe.spin_until(lambda: probe.node.count_subscribers("/placement_reports") > 0, 30), "no vi_node"
+        probe.structure.publish(structure_to_msg(paper))
+        for tile in paper.tile_ids:
+            report = PlacementReport(tile_id=tile, outcome=PlacementReport.OUTCOME_PLACED, robot_name="robot1")
+            report.header.stamp.sec = 101 if tile == 10 else 50
+            probe.reports.publish(report)
+        probe.spin_until(lambda: False, 1.0)
+        result = replay(probe, str(bag))
+        assert result.returncode == 0, result.stderr
+        assert probe.spin_until(lambda: len(probe.states) >= 1, 30), probe.diagnostics
+        assert node.poll() is None
+    states = {s.tile_id: STATE_NAMES.get(s.state) for s in probe.states[-1].states}
+    assert sorted(states) == [t for t in paper.tile_ids if t != 10]
+    assert "missing" not in states.values(), states

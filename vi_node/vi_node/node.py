@@ -14,7 +14,8 @@ S_a: the tiles claimed placed (PlacementReport OUTCOME_PLACED) of the structure 
 until a structure / a report arrives, the `structure_file` and `expected_tiles` parameters. A tile
 announced in an auction leaves S_a until a new placement report for it arrives; a tile announced for
 repair stays until its robot reports it taken off. A tile a robot was placing shortly before a scan
-may lie there unreported: expected, but not judged (`tiles_in_hand`). Each scan is paired
+may lie there unreported, and one reported placed after the scan was taken may not have been there
+yet: both are expected, but not judged (`tiles_in_hand`). Each scan is paired
 with the overhead pose nearest in time; only the latest scan is kept while one is processed (the
 camera is faster than the inspection can be on a bad day: old scans are dropped, not queued).
 """
@@ -215,10 +216,16 @@ class ViNode(Node):
             self.in_hand.heard(msg.state == RobotStatus.PLACING, int(msg.current_tile),
                                stamp_to_nanoseconds(msg.header.stamp))
 
-    def _tiles_in_hand(self, stamp: int) -> frozenset[int]:
+    def _s_a_at(self, stamp: int) -> tuple[list[int], frozenset[int]]:
+        """S_a for a scan taken at `stamp` (ns), and the tiles in hand then (`tiles_in_hand`): a tile
+        a robot was placing may lie there already, and one reported placed after the scan was taken
+        may not have been there yet (an inspection takes a second or more on a loaded host; two VI
+        robots' scans of a tile that landed just after them had it auctioned as missing)."""
         with self.news_lock:
             self.in_hand.forget_before(stamp)
-            return self.in_hand.at(stamp, self._expected_ids() or ())
+            expected = self._expected_ids() or []
+            later = {t for t in expected if self.placed.get(t, -1) > stamp}
+            return [t for t in expected if t not in later], self.in_hand.at(stamp, expected) | later
 
     def _on_announcement(self, msg: AuctionAnnouncement) -> None:
         if msg.reason == AuctionAnnouncement.REASON_MISPLACED:
@@ -360,9 +367,9 @@ class ViNode(Node):
         except CloudError as error:
             self._unclassified(msg, DiagnosticStatus.ERROR, f"dropped a scan: {error}")
             return
-        in_hand = self._tiles_in_hand(stamp_to_nanoseconds(msg.header.stamp))
-        if in_hand != self.pipeline.in_hand:
-            self.pipeline.set_expected(self.pipeline.expected_ids, in_hand)
+        expected, in_hand = self._s_a_at(stamp_to_nanoseconds(msg.header.stamp))
+        if tuple(expected) != self.pipeline.expected_ids or in_hand != self.pipeline.in_hand:
+            self.pipeline.set_expected(expected, in_hand)
         try:
             result = self.pipeline.inspect(cloud, overhead, robots, stop_requested=lambda: self.closing)
         except InspectionStoppedError:
