@@ -380,17 +380,32 @@ def test_scans_are_inspected_while_the_simulated_clock_stands_still(probe: Probe
         assert node.poll() is None
 
 
+def record_one_scan(path: Path, scene: Scene, bearing: float) -> Path:
+    """A bag of one scan of `scene` at 100 s from `bearing` (rad), 1 m away, with its overhead pose."""
+    view = view_from(scene.centre, bearing, 1.0, np.random.default_rng(5))
+    with ScanBagWriter(path) as writer:
+        writer.write_pose(100 * 10**9 - 5_000_000, *view.overhead)
+        writer.write_scan(100 * 10**9, KinectSimulator(seed=6).scan(scene.kinect_scene, view.camera))
+    return path
+
+
+def states_after_replay(probe: Probe, node: subprocess.Popen[str], bag: Path) -> dict[int, str | None]:
+    """Replay `bag` to the running vi_node once S_a has settled; the states of its last answer."""
+    probe.spin_until(lambda: False, 1.0)
+    result = replay(probe, str(bag))
+    assert result.returncode == 0, result.stderr
+    assert probe.spin_until(lambda: len(probe.states) >= 1, 30), probe.diagnostics
+    assert node.poll() is None
+    return {s.tile_id: STATE_NAMES.get(s.state) for s in probe.states[-1].states}
+
+
 def test_a_tile_a_robot_is_placing_is_expected_not_judged(probe: Probe, tmp_path: Path) -> None:
     """Square 10 lies on the structure before its robot reports it placed. Offline, without the
     team's statuses, its points make rectangle 11 look like a tile of the wrong type; vi_node hears
     the robot placing 10 on /robot_status and says nothing of either."""
     paper = structure()
     scene = Scene(paper, tuple(paper.tile_ids), ())
-    view = view_from(scene.centre, 0.0, 1.0, np.random.default_rng(5))
-    bag = tmp_path / "unreported"
-    with ScanBagWriter(bag) as writer:
-        writer.write_pose(100 * 10**9 - 5_000_000, *view.overhead)
-        writer.write_scan(100 * 10**9, KinectSimulator(seed=6).scan(scene.kinect_scene, view.camera))
+    bag = record_one_scan(tmp_path / "unreported", scene, bearing=0.0)
     reported = [t for t in paper.tile_ids if t != 10]
     offline_states = offline(str(bag), "--expected", ",".join(map(str, reported)))
     assert offline_states[0]["tiles"]["11"]["state"] == "misplaced"
@@ -405,12 +420,7 @@ def test_a_tile_a_robot_is_placing_is_expected_not_judged(probe: Probe, tmp_path
         for tile in reported:
             probe.reports.publish(PlacementReport(tile_id=tile, outcome=PlacementReport.OUTCOME_PLACED,
                                                   robot_name="robot1"))
-        probe.spin_until(lambda: False, 1.0)
-        result = replay(probe, str(bag))
-        assert result.returncode == 0, result.stderr
-        assert probe.spin_until(lambda: len(probe.states) >= 1, 30), probe.diagnostics
-        assert node.poll() is None
-    states = {s.tile_id: STATE_NAMES.get(s.state) for s in probe.states[-1].states}
+        states = states_after_replay(probe, node, bag)
     assert sorted(states) == reported
     assert "misplaced" not in states.values(), states
 
@@ -421,11 +431,7 @@ def test_a_tile_reported_placed_after_the_scan_was_taken_is_not_judged_by_it(pro
     before a report does not judge the tile it reports."""
     paper = structure()
     scene = Scene(paper, tuple(paper.tile_ids), (10,))
-    view = view_from(scene.centre, math.radians(90.0), 1.0, np.random.default_rng(5))
-    bag = tmp_path / "before_the_report"
-    with ScanBagWriter(bag) as writer:
-        writer.write_pose(100 * 10**9 - 5_000_000, *view.overhead)
-        writer.write_scan(100 * 10**9, KinectSimulator(seed=6).scan(scene.kinect_scene, view.camera))
+    bag = record_one_scan(tmp_path / "before_the_report", scene, bearing=math.radians(90.0))
     assert offline(str(bag))[0]["tiles"]["10"]["state"] == "missing"
 
     with vi_node(probe, "sensor_reliability:=reliable") as node:
@@ -435,11 +441,6 @@ def test_a_tile_reported_placed_after_the_scan_was_taken_is_not_judged_by_it(pro
             report = PlacementReport(tile_id=tile, outcome=PlacementReport.OUTCOME_PLACED, robot_name="robot1")
             report.header.stamp.sec = 101 if tile == 10 else 50
             probe.reports.publish(report)
-        probe.spin_until(lambda: False, 1.0)
-        result = replay(probe, str(bag))
-        assert result.returncode == 0, result.stderr
-        assert probe.spin_until(lambda: len(probe.states) >= 1, 30), probe.diagnostics
-        assert node.poll() is None
-    states = {s.tile_id: STATE_NAMES.get(s.state) for s in probe.states[-1].states}
+        states = states_after_replay(probe, node, bag)
     assert sorted(states) == [t for t in paper.tile_ids if t != 10]
     assert "missing" not in states.values(), states
