@@ -10,19 +10,22 @@ import pytest
 from vi_helpers import structure
 
 from tiling_assembly.contacts import separation
-from tiling_assembly.geometry import PlacedTile, turn_symmetry
+from tiling_assembly.geometry import PlacedTile, prism_shape, turn_symmetry
 from tiling_sim.inspection_scenarios import Scene, misplace_tile, view_from
 from tiling_sim.kinect import KinectSimulator
 from vi_node.classify import TileState
 from vi_node.inspection_settings import InspectionSettings
 from vi_node.misplacement import (
     MisplacementSettings,
+    ScanPoints,
     TileFit,
+    _reaching_over,
     confirmed_by_pixels,
     moved_as_one,
     moved_tile,
     something_else_there,
 )
+from vi_node.patches import PlanarPatches
 from vi_node.pipeline import InspectionPipeline
 from vi_node.pose_prior import OverheadPose
 
@@ -191,3 +194,36 @@ def test_two_tiles_misplaced_their_own_ways_are_both_flagged(seed: int, bearing:
     result = InspectionPipeline(gate, None, InspectionSettings()).inspect(cloud, OverheadPose(*view.overhead))
     assert result.ok, result.reason
     assert sorted(t.tile_id for t in result.tiles if t.state == TileState.MISPLACED) == [6, 7]
+
+
+def test_only_what_stands_over_the_structure_reaches_over_a_tile() -> None:
+    """A robot's arm or a box standing beside a pier, clear of every tile's footprint, stands over
+    no tile: it is no sign of a bigger tile at the pier's place (an 8-robot arcade trial had ten
+    pier blocks 'off by 0 cm' repaired). The same points over the neighbouring slab's footprint,
+    above its top, can only be held up by something at the pier's place."""
+    block = _box_type(0.05, 0.05, 0.05)
+    slab = _box_type(0.2, 0.2, 0.02)
+    identity = np.eye(3)
+    pier = PlacedTile(1, "block", block, identity, np.array([0.0, 0.0, 0.0]))
+    floor_slab = PlacedTile(2, "slab", slab, identity, np.array([0.125, 0.0, 0.0]))
+    patches = PlanarPatches([pier, floor_slab])
+    # a 2 cm x 2 cm patch of tops 4 cm up, 3-5 cm beside the pier (x > 0.025)
+    grid = np.stack(np.meshgrid(np.linspace(0.055, 0.075, 5), np.linspace(-0.01, 0.01, 5)), -1).reshape(-1, 2)
+    beside = np.column_stack([grid, np.full(len(grid), 0.04)])
+    away = beside * np.array([-1.0, 1.0, 1.0])  # the same on the other side: over no tile
+    settings = MisplacementSettings()
+    for points, expected in ((away, 0), (beside, len(beside))):
+        scan = _scan_points(points, patches)
+        counts = _reaching_over(scan, patches, np.zeros(len(points), dtype=bool), settings)
+        assert counts[0] == expected and counts[1] == 0
+
+
+def _box_type(length: float, width: float, height: float) -> object:
+    hx, hy = length / 2, width / 2
+    return prism_shape(np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]), height)
+
+
+def _scan_points(points: np.ndarray, patches: PlanarPatches) -> ScanPoints:
+    """The points as the pipeline hands them over: each with its closest point on S_a."""
+    near = patches.project(points, max_distance=1.0)
+    return ScanPoints(points, np.ones(len(points)), near.tile, near.closest, near.normal)

@@ -192,7 +192,8 @@ def _reaching_over(
     beside = np.hypot(outside[..., 0], outside[..., 1])
     z = points[:, None, 2]
     under = np.where(beside == 0.0, high[..., 2], -np.inf).max(axis=1)  # the structure's top below each point
-    over = z[:, 0] > under + settings.sticking_out
+    # beside the structure is not over it: robots and clutter standing by it reach no tile from above
+    over = np.isfinite(under) & (z[:, 0] > under + settings.sticking_out)
     points, beside, z = points[over], beside[over], z[over]
     top = _tops(points)
     points, beside, z = points[top], beside[top], z[top]
