@@ -68,6 +68,11 @@ class AssemblySettings:
     place_time: float = setting(_TIMES.place_time, "Time model: s to place a tile.")
     travel_speed: float = setting(_TIMES.travel_speed, "Time model: mean base speed between cache and structure, m/s.")
     cache_standoff: float = setting(_TIMES.cache_standoff, "Time model: m a base stops short of a parts cache.")
+    approach_distance: float = setting(
+        _TIMES.approach_distance, "Time model: m from a tile's centre to where a base stops to place it.")
+    base_size: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        list(_TIMES.base_size), "Time model: x and y size of a robot base's footprint (m).")
+    base_clearance: float = setting(_TIMES.base_clearance, "Time model: m a base keeps from every tile.")
     weight_supported: float = setting(30.0, "A in b = w - A*c + B*d: s per own tile the missing one supports.")
     weight_distance: float = setting(10.0, "B in b = w - A*c + B*d: s per metre from own cache to the tile.")
     bid_in_auctions: bool = setting(True, "Take part in auctions; false: never bid (the robot keeps its own task).")
@@ -92,7 +97,8 @@ class AssemblyNode(Node):
         self.robot_name = self._robot_name()
         self.time_model = TimeModel(
             pick_time=settings.pick_time, place_time=settings.place_time, travel_speed=settings.travel_speed,
-            cache_standoff=settings.cache_standoff,
+            cache_standoff=settings.cache_standoff, approach_distance=settings.approach_distance,
+            base_size=tuple(settings.base_size), base_clearance=settings.base_clearance,
         )
         self.weight_supported = float(settings.weight_supported)
         self.weight_distance = float(settings.weight_distance)

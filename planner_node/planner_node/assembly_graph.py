@@ -4,7 +4,7 @@ Tiles are the nodes; an undirected edge joins two tiles that touch, side by side
 (`Structure.contacts`, plus every support pair), weighted by the distance between their centroids.
 The precedence DAG is the support relation: a tile's supports must be placed before it. Every
 tile also carries its cost phases under the time model: pick at its type's cache, carry to the
-structure, place, return to the cache (`TimeModel.tile_cost` is their sum).
+structure, place, return to a cache (`TimeModel.tile_cost` is their sum).
 
 The planner works on array indices 0..n-1 (tiles in increasing id order); `tile_ids` maps back.
 """
@@ -39,9 +39,10 @@ class AssemblyGraph:
     type_names: tuple[str, ...]  # tile type of each index
     centroids: FloatArray  # (n, 3) m
     pick: FloatArray  # (n,) s, picking the tile at its cache
-    travel: FloatArray  # (n,) s, one way between the cache and the tile
+    travel: FloatArray  # (n,) s, from the cache to the tile
+    back: FloatArray  # (n,) s, from the tile back to a cache (TimeModel.return_time)
     place: FloatArray  # (n,) s, placing it
-    cost: FloatArray  # (n,) s, TimeModel.tile_cost: pick + 2 travel + place
+    cost: FloatArray  # (n,) s, TimeModel.tile_cost: pick + travel + place + back
     # the contact graph in compressed sparse rows: the neighbours of tile k are
     # neighbour_index[neighbour_start[k]:neighbour_start[k + 1]], in increasing order, at
     # neighbour_distance (centroid to centroid, m)
@@ -179,11 +180,10 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
     index = {t: k for k, t in enumerate(ids)}
     tiles = [structure.tiles[t] for t in ids]
     centroids = np.array([t.centroid for t in tiles], dtype=float).reshape(n, 3)
-    travel_list = [time_model.travel_time(structure, t) for t in ids]
-    travel = np.array(travel_list, dtype=float)
-    # TimeModel.tile_cost, without working out the travel time a second time
-    cost = np.array([time_model.handling_time(t.type_name) + 2.0 * trip for t, trip in zip(tiles, travel_list,
-                                                                                          strict=True)], dtype=float)
+    travel = np.array([time_model.travel_time(structure, t) for t in ids], dtype=float)
+    back = np.array([time_model.return_time(structure, t) for t in ids], dtype=float)
+    # TimeModel.tile_cost, without working out the trips a second time
+    cost = np.array([time_model.handling_time(t.type_name) for t in tiles], dtype=float).reshape(n) + travel + back
     place = np.array([time_model.place_duration(t.type_name) for t in tiles], dtype=float)
     pick = np.full(n, time_model.pick_duration(), dtype=float)
 
@@ -206,6 +206,7 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
         centroids=centroids,
         pick=pick,
         travel=travel,
+        back=back,
         place=place,
         cost=cost,
         neighbour_start=start,

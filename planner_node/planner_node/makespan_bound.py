@@ -51,7 +51,7 @@ def critical_path(graph: AssemblyGraph) -> float:
             if earliest_end[s] > start:
                 start = earliest_end[s]
         earliest_end[t] = start + place[t]
-    tail = [e + back for e, back in zip(earliest_end, graph.travel.tolist(), strict=True)]
+    tail = [e + back for e, back in zip(earliest_end, graph.back.tolist(), strict=True)]
     return max(tail, default=0.0)
 
 

@@ -9,7 +9,8 @@ parameter); types not listed take `place_time`.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from array import array
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -60,6 +61,12 @@ class PlannerParameters:
     cache_crowding: float = setting(
         _DEFAULT_TIMES.cache_crowding, "Time a pick costs for every robot beyond one per parts cache in use, "
         "as robots crowding a cache drive round it (s)")
+    approach_distance: float = setting(
+        _DEFAULT_TIMES.approach_distance, "How far from a tile's centre a robot base stops to place it, its arm's "
+        "reach; further out where the base would stand on the structure (m)")
+    base_size: tuple[float, float] = setting(
+        _DEFAULT_TIMES.base_size, "x and y size of a robot base's footprint, which stops clear of the structure (m)")
+    base_clearance: float = setting(_DEFAULT_TIMES.base_clearance, "How far a robot base keeps from every tile (m)")
 
     def robots(self) -> list[str]:
         """robot_names when given, else robot1..robotN."""
@@ -84,6 +91,9 @@ class PlannerParameters:
             cache_standoff=self.cache_standoff,
             type_place_time=dict(self.type_place_time),
             cache_crowding=self.cache_crowding,
+            approach_distance=self.approach_distance,
+            base_size=self.base_size,
+            base_clearance=self.base_clearance,
         )
 
     def validate(self) -> None:
@@ -118,6 +128,9 @@ _FIELDS = {
     "travel_speed": float,
     "cache_standoff": float,
     "cache_crowding": float,
+    "approach_distance": float,
+    "base_size": tuple,
+    "base_clearance": float,
 }
 
 
@@ -143,12 +156,16 @@ def _convert(name: str, value: Any, kind: type) -> Any:
         return value
     if kind is list and isinstance(value, list) and all(isinstance(v, str) for v in value):
         return tuple(value)
+    if kind is tuple and isinstance(value, Sequence | array) and all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+        return tuple(float(v) for v in value)
     wanted = {
         float: "a number",
         int: "a whole number",
         bool: "true or false",
         str: "a string",
         list: "a list of strings",
+        tuple: "a list of numbers",
     }[kind]
     raise ParameterError(f"{name} must be {wanted}, got {value!r}")
 

@@ -9,7 +9,7 @@ works through its tiles in order; one tile is one round trip of the time model
     arrive        it has carried the tile to the structure (travel time)
     place_start   every support of the tile is placed (the robot waits here, holding the tile)
     place_end     the tile is placed: tiles resting on it may be placed from now on
-    finish        the robot is back at the cache (travel time): it starts its next tile
+    finish        the robot is back at a cache (return time): it starts its next tile
 
 A robot starts at t = 0 at the cache of its first tile (no trip from a home position: the paper's
 robots start at their parts caches). A robot's busy time is therefore exactly its workload (the
@@ -81,9 +81,7 @@ def simulate_orders(graph: AssemblyGraph, orders: Sequence[Sequence[int]]) -> Si
                 raise ValueError(f"tile {graph.tile_ids[t]} appears more than once in the orders")
             seen[t] = True
 
-    pick = graph.pick.tolist()
-    travel = graph.travel.tolist()
-    place = graph.place.tolist()
+    pick, travel, back, place = graph.pick.tolist(), graph.travel.tolist(), graph.back.tolist(), graph.place.tolist()
     supports = graph.support_lists
     dependents = graph.dependent_lists
     nan = float("nan")
@@ -101,7 +99,7 @@ def simulate_orders(graph: AssemblyGraph, orders: Sequence[Sequence[int]]) -> Si
     wait = [0.0] * robots
     position = [0] * robots
     runnable = list(range(robots - 1, -1, -1))
-    round_trip = [p + 2.0 * trip + q for p, trip, q in zip(pick, travel, place, strict=True)]
+    round_trip = graph.cost.tolist()
     while runnable:
         r = runnable.pop()
         order = orders[r]
@@ -124,7 +122,7 @@ def simulate_orders(graph: AssemblyGraph, orders: Sequence[Sequence[int]]) -> Si
             place_start[t] = begin
             end = begin + place[t]
             place_end[t] = end
-            now = end + trip
+            now = end + back[t]
             finish[t] = now
             waited += begin - arrived
             worked += round_trip[t]

@@ -78,11 +78,11 @@ def bottom_levels(graph: AssemblyGraph) -> list[float]:
 
 def _longest_paths_to_the_end(graph: AssemblyGraph) -> list[float]:
     place = graph.place.tolist()
-    travel = graph.travel.tolist()
+    back = graph.back.tolist()
     dependents = graph.dependent_lists
     level = [0.0] * len(graph)
     for t in reversed(graph.topological_order.tolist()):
-        longest = travel[t]  # after the last tile its robot still travels back
+        longest = back[t]  # after the last tile its robot still travels back
         for d in dependents[t]:
             if level[d] > longest:
                 longest = level[d]
@@ -142,6 +142,7 @@ class TeamSequencer:
         # plain lists: the pass reads single elements in tight loops, where numpy is slow
         self.pick_time = graph.pick.tolist()
         self.travel_time = graph.travel.tolist()  # one way, cache to tile
+        self.back_time = graph.back.tolist()  # tile to a cache
         self.place_time = graph.place.tolist()
         self.cost, self.layer = graph.cost.tolist(), graph.layer.tolist()
         self.distance = (distance if distance is not None else np.zeros(n)).tolist()
@@ -290,13 +291,13 @@ class TeamSequencer:
         end = begin + self.place_time[t]
         if now != self.free_at[robot]:
             self.delayed = True
-        self.free_at[robot] = end + travel
+        self.free_at[robot] = end + self.back_time[t]
         self.orders[robot].append(t)
         if not self.delayed:  # as schedule_sim.simulate_orders works them out
             self.start[t], self.arrive[t], self.place_start[t] = now, arrive, begin
-            self.place_end[t], self.finish[t] = end, end + travel
+            self.place_end[t], self.finish[t] = end, end + self.back_time[t]
             self.wait[robot] += begin - arrive
-            self.busy[robot] += self.pick_time[t] + 2.0 * travel + self.place_time[t]
+            self.busy[robot] += self.cost[t]
         return end
 
     def schedule(self) -> SimulationResult | None:

@@ -92,6 +92,10 @@ def test_parameter_file_sets_the_time_model(tmp_path: Path) -> None:
     assert fast["lower_bound"] == pytest.approx(bound.value, abs=1e-3)
     assert bound.work_per_robot == pytest.approx(total / 2)
     assert fast["lower_bound"] < slow["lower_bound"]
+    big_file = tmp_path / "big.yaml"  # a bigger base stops further out round paper_14's tiles (nearer the caches)
+    big_file.write_text("/**:\n  ros__parameters:\n    base_size: [0.6, 0.6]\n")
+    big = json.loads(plan("--structure", str(PAPER), "--robots", "2", "--params", str(big_file)).stdout)
+    assert abs(big["lower_bound"] - slow["lower_bound"]) > 1.0
 
 
 def test_config_file_holds_the_defaults() -> None:
@@ -107,6 +111,8 @@ def test_config_file_holds_the_defaults() -> None:
         ("/**:\n  ros__parameters:\n    travel_speed: 0\n", "travel_speed"),
         ("/**:\n  ros__parameters:\n    method: fastest\n", "method"),
         ("/**:\n  ros__parameters:\n    robot_names: [a, b, c]\n", "robot_names"),
+        ("/**:\n  ros__parameters:\n    base_size: [0.3]\n", "base_size"),
+        ("/**:\n  ros__parameters:\n    base_size: [wide, long]\n", "base_size"),
         ("planner: {}\n", "ros__parameters"),
         ("[1, 2\n", "YAML"),
     ],

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,7 +19,10 @@ from planner_node.structure_generators import pyramid, random_cluster
 from tiling_assembly.structure_file import load_structure, parse_structure
 from tiling_assembly.time_model import TimeModel
 
-TIMES = TimeModel(pick_time=5.0, place_time=10.0, travel_speed=0.5, cache_standoff=0.0)  # trips centre to centre
+TIMES = TimeModel(  # trips centre to centre
+    pick_time=5.0, place_time=10.0, travel_speed=0.5, cache_standoff=0.0, approach_distance=0.0, base_size=(0.0, 0.0),
+    base_clearance=0.0,
+)
 
 
 def _box(length: float, width: float, height: float) -> dict:
@@ -62,25 +66,34 @@ def two_stacks() -> object:
 B_TRAVEL = math.hypot(0.1, 1.0) / 0.5  # s, one way between the block cache and block 2
 
 
+def back_from(x: float) -> float:
+    """Seconds from a tile of the arch at (x, 0) back to a cache: the block cache (used by two tiles)
+    two times in three, the beam cache once."""
+    return (2 * math.hypot(x, 1.0) + math.hypot(x - 0.05, 1.0)) / 3 / 0.5
+
+
 def test_times_of_a_plan_without_waiting() -> None:
     schedule = simulate_plan(arch(), TIMES, {"robot1": [1, 3], "robot2": [2]})
     assert schedule.completed
     one, three = schedule.robots[0].tiles
-    # robot1 starts at the block cache: pick 5 s, carry 2 s, place 10 s, walk back 2 s
+    # robot1 starts at the block cache: pick 5 s, carry 2 s, place 10 s, walk back to a cache ~2 s
     times = (one.start, one.arrive, one.place_start, one.place_end, one.finish)
-    assert times == pytest.approx((0, 7, 7, 17, 19))
-    # then the beam: its supports are placed at 17 s and 17.01 s, long before it arrives at 26 s
-    assert (three.start, three.arrive, three.place_start, three.finish) == pytest.approx((19, 26, 26, 38))
+    assert times == pytest.approx((0, 7, 7, 17, 17 + back_from(0.0)))
+    # then the beam: its supports are placed at 17 s and 17.01 s, long before it arrives at ~26 s
+    beam_start = 17 + back_from(0.0)
+    assert (three.start, three.arrive, three.place_start) == pytest.approx((beam_start, beam_start + 7,
+                                                                            beam_start + 7))
+    assert three.finish == pytest.approx(beam_start + 17 + back_from(0.05))
     assert three.wait == pytest.approx(0.0)
     assert schedule.timing(2).place_end == pytest.approx(5 + B_TRAVEL + 10)
-    assert schedule.makespan == pytest.approx(38.0)
+    assert schedule.makespan == pytest.approx(three.finish)
     assert schedule.total_wait == pytest.approx(0.0)
 
 
 def test_a_robot_waits_for_a_support_placed_by_another() -> None:
     schedule = simulate_plan(arch(), TIMES, {"robot1": [3], "robot2": [1, 2]})
     beam = schedule.timing(3)
-    last_support = 19 + 5 + B_TRAVEL + 10  # robot2 places block 2 after block 1
+    last_support = 17 + back_from(0.0) + 5 + B_TRAVEL + 10  # robot2 places block 2 after block 1
     assert schedule.timing(2).place_end == pytest.approx(last_support)
     assert beam.arrive == pytest.approx(7.0)
     assert beam.place_start == pytest.approx(last_support)
@@ -88,7 +101,7 @@ def test_a_robot_waits_for_a_support_placed_by_another() -> None:
     robot1 = schedule.robots[0]
     assert robot1.busy == pytest.approx(TIMES.tile_cost(arch(), 3))
     assert robot1.finish == pytest.approx(robot1.busy + robot1.wait)
-    assert schedule.makespan == pytest.approx(last_support + 12.0)
+    assert schedule.makespan == pytest.approx(last_support + 10.0 + back_from(0.05))
 
 
 def test_contradictory_orders_deadlock_and_name_the_blocked_tiles() -> None:
@@ -112,10 +125,11 @@ def test_lower_bound_of_the_arch() -> None:
     graph = build_graph(arch(), TIMES)
     bound = makespan_lower_bound(graph, 2)
     # the chain block 2 -> beam: pick + carry block 2, place it, place the beam, walk back
-    assert bound.critical_path == pytest.approx(5 + B_TRAVEL + 10 + 10 + 2)
+    assert bound.critical_path == pytest.approx(5 + B_TRAVEL + 10 + 10 + back_from(0.05))
     assert bound.work_per_robot == pytest.approx(sum(TIMES.tile_cost(arch(), t) for t in (1, 2, 3)) / 2)
     assert bound.value == pytest.approx(max(bound.critical_path, bound.work_per_robot))
-    assert bound.tile_count == pytest.approx(19 + 19)  # one robot places two tiles
+    cheapest = sorted(TIMES.tile_cost(arch(), t) for t in (1, 2, 3))[:2]
+    assert bound.tile_count == pytest.approx(sum(cheapest))  # one robot places two tiles
     assert makespan_lower_bound(graph, 1).value == pytest.approx(graph.total_work)
 
 
@@ -124,7 +138,7 @@ def test_graph_costs_are_the_time_models() -> None:
     graph = build_graph(structure, TimeModel())
     for k, tile in enumerate(graph.tile_ids):
         assert graph.cost[k] == pytest.approx(TimeModel().tile_cost(structure, int(tile)))
-        assert graph.pick[k] + 2 * graph.travel[k] + graph.place[k] == pytest.approx(graph.cost[k])
+        assert graph.pick[k] + graph.travel[k] + graph.place[k] + graph.back[k] == pytest.approx(graph.cost[k])
     assert graph.n_components == 1
 
 
@@ -221,13 +235,50 @@ def test_a_tile_refused_leave_is_asked_again_once_a_neighbour_has_moved() -> Non
 
 def test_a_trip_starts_an_arms_reach_short_of_the_cache() -> None:
     structure = arch()
-    paper = TimeModel(cache_standoff=0.0)
-    ours = TimeModel()  # the base stops 0.25 m short of the cache, as the simulated and the real M3 do
+    paper = TimeModel(cache_standoff=0.0, approach_distance=0.0, base_size=(0.0, 0.0), base_clearance=0.0)
+    short = replace(paper, cache_standoff=0.25)  # the base stops 0.25 m short of the cache, as the M3 does
     for tile in structure.tiles:
         d = paper.cache_distance(structure, tile)
         assert paper.travel_time(structure, tile) == pytest.approx(d / 0.15)
-        assert ours.travel_time(structure, tile) == pytest.approx((d - 0.25) / 0.15)
-        assert ours.tile_cost(structure, tile) == pytest.approx(paper.tile_cost(structure, tile) - 2 * 0.25 / 0.15)
+        assert short.travel_time(structure, tile) == pytest.approx((d - 0.25) / 0.15)
+        assert short.tile_cost(structure, tile) == pytest.approx(paper.tile_cost(structure, tile) - 2 * 0.25 / 0.15)
     assert TimeModel(cache_standoff=5.0).travel_time(structure, 1) == 0.0  # never a negative trip
     with pytest.raises(ValueError, match="cache_standoff"):
         TimeModel(cache_standoff=-0.1)
+    with pytest.raises(ValueError, match="base_size"):
+        TimeModel(base_size=(0.3, -0.1))
+
+
+def test_the_base_stops_an_arms_reach_off_the_tile_or_clear_of_the_structure() -> None:
+    """A row of three blocks with their cache straight ahead of block 1: an arm's reach off block 1
+    towards the cache the base stands clear. Blocks 2 and 3 have their neighbours on that side: the
+    base turns round the tile (5 degree steps) until its footprint clears the row, 0.25 m sin(turn)
+    >= 0.05 m (the tiles' half width) + 0.15 m (half the base) + 0.02 m (clearance): 65 degrees."""
+    row = parse_structure(
+        {
+            "tile_types": {"block": _box(0.1, 0.1, 0.05)},
+            "tiles": [{"id": k + 1, "type": "block", "position": [0.1 * k, 0.0, 0.0]} for k in range(3)],
+            "caches": {"block": [-2.0, 0.0]},
+        },
+        "row",
+    )
+    model = TimeModel(cache_standoff=0.0, approach_distance=0.25, base_size=(0.3, 0.3), base_clearance=0.02)
+    assert model.travel_time(row, 1) == pytest.approx(1.75 / 0.15, abs=0.01 / 0.15)
+    turn = math.radians(65.0)
+    for tile, x in ((2, 0.1), (3, 0.2)):
+        stop = (x - 0.25 * math.cos(turn), 0.25 * math.sin(turn))
+        assert model.travel_time(row, tile) == pytest.approx(math.hypot(stop[0] + 2.0, stop[1]) / 0.15,
+                                                             abs=0.02 / 0.15)
+    # a subset (the tiles left to build) still has its base stops clear of all the tiles
+    assert model.travel_time(row.subset([2, 3]), 2) == pytest.approx(model.travel_time(row, 2))
+    free = TimeModel(cache_standoff=0.0, approach_distance=0.25, base_size=(0.0, 0.0), base_clearance=0.0)
+    assert free.travel_time(row, 3) == pytest.approx(1.95 / 0.15)  # a point robot stands among the tiles
+
+
+def test_the_trip_back_goes_to_the_caches_in_use() -> None:
+    structure = arch()
+    model = TIMES
+    for tile, x in ((1, 0.0), (2, 0.1), (3, 0.05)):
+        assert model.return_time(structure, tile) == pytest.approx(back_from(x))
+        assert model.tile_cost(structure, tile) == pytest.approx(
+            model.handling_time(structure.tiles[tile].type_name) + model.travel_time(structure, tile) + back_from(x))

@@ -86,6 +86,12 @@ class Structure:
     caches: Mapping[str, tuple[float, float]]  # tile type -> (x, y) of its parts cache
     contacts: tuple[tuple[int, int], ...] = ()  # pairs of touching tiles (a < b)
     source: str = "<memory>"
+    whole: Structure | None = None  # what a subset was cut from: all its tiles stand where no robot base can
+
+    @property
+    def site(self) -> Structure:
+        """The whole structure this one is part of (itself unless a subset)."""
+        return self.whole if self.whole is not None else self
 
     @property
     def tile_ids(self) -> list[int]:
@@ -165,4 +171,5 @@ class Structure:
             caches=self.caches,
             contacts=tuple((a, b) for a, b in self.contacts if a in chosen and b in chosen),
             source=self.source,
+            whole=self.site,
         )
