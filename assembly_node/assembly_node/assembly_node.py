@@ -73,6 +73,8 @@ class AssemblySettings:
     base_size: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         list(_TIMES.base_size), "Time model: x and y size of a robot base's footprint (m).")
     base_clearance: float = setting(_TIMES.base_clearance, "Time model: m a base keeps from every tile.")
+    cache_crowding: float = setting(
+        _TIMES.cache_crowding, "Time model: s a pick costs for every robot of the plan beyond one per cache in use.")
     weight_supported: float = setting(30.0, "A in b = w - A*c + B*d: s per own tile the missing one supports.")
     weight_distance: float = setting(10.0, "B in b = w - A*c + B*d: s per metre from own cache to the tile.")
     bid_in_auctions: bool = setting(True, "Take part in auctions; false: never bid (the robot keeps its own task).")
@@ -99,7 +101,9 @@ class AssemblyNode(Node):
             pick_time=settings.pick_time, place_time=settings.place_time, travel_speed=settings.travel_speed,
             cache_standoff=settings.cache_standoff, approach_distance=settings.approach_distance,
             base_size=tuple(settings.base_size), base_clearance=settings.base_clearance,
+            cache_crowding=settings.cache_crowding,
         )
+        self.team_size = 1  # robots of the latest plan: they crowd the caches (TimeModel.for_team)
         self.weight_supported = float(settings.weight_supported)
         self.weight_distance = float(settings.weight_distance)
         self.max_attempts = int(settings.max_attempts)
@@ -189,12 +193,18 @@ class AssemblyNode(Node):
         except StructureError as error:
             self.get_logger().error(f"ignoring the structure on /structure: {error}")
 
+    def team_model(self) -> TimeModel:
+        """The time model of this team on this structure, as the planner made the plan with (w_i)."""
+        assert self.executor_state is not None
+        return self.time_model.for_team(self.executor_state.structure, self.team_size)
+
     def on_plan(self, msg: AssemblyPlan) -> None:
         if self.executor_state is None:
             self.pending_plan = msg
             return
         task = next((t for t in msg.tasks if t.robot_name == self.robot_name), None)
         tiles = list(task.tile_ids) if task is not None else []
+        self.team_size = max(len(msg.tasks), 1)
         if self.executor_state.adopt_plan(msg.revision, tiles):
             self.get_logger().info(
                 f"plan revision {msg.revision}: {len(self.executor_state.remaining)} tiles to place "
@@ -246,12 +256,12 @@ class AssemblyNode(Node):
         if repair:
             self.repairs[msg.auction_id] = msg
             bid = compute_repair_bid(
-                state.structure, self.time_model, state.task(), msg.tile_id,
+                state.structure, self.team_model(), state.task(), msg.tile_id,
                 self.standing_at or self.cache_of(tile_type), self.weight_supported, self.weight_distance,
             )
         else:
             bid = compute_bid(
-                state.structure, self.time_model, state.task(), msg.tile_id, self.cache_of(tile_type),
+                state.structure, self.team_model(), state.task(), msg.tile_id, self.cache_of(tile_type),
                 self.weight_supported, self.weight_distance,
             )
         out = AuctionBid(
@@ -515,7 +525,7 @@ class AssemblyNode(Node):
             status.plan_revision = max(state.plan_revision, 0)
             status.remaining_tiles = state.task()
             status.placed_tiles = list(state.placed_by_me)
-            status.remaining_workload = self.time_model.workload(state.structure, state.task())
+            status.remaining_workload = self.team_model().workload(state.structure, state.task())
         self.status_pub.publish(status)
 
 

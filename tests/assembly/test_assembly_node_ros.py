@@ -19,6 +19,7 @@ from ros_helpers.spinning import spin_until as spin_helper
 
 from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure_file import load_structure
+from tiling_assembly.time_model import TimeModel
 from tiling_assembly_msgs.action import PlaceTile
 from tiling_assembly_msgs.msg import (
     AssemblyPlan,
@@ -120,9 +121,10 @@ class RobotUnderTest:
     def spin_until(self, predicate, timeout: float) -> bool:  # type: ignore[no-untyped-def]
         return spin_helper(self.executor, predicate, timeout)
 
-    def plan(self, revision: int, tiles: list[int], structure_name: str) -> None:
+    def plan(self, revision: int, tiles: list[int], structure_name: str, team: int = 1) -> None:
         plan = AssemblyPlan(revision=revision, structure_name=structure_name)
         plan.tasks = [AssemblyTask(robot_name="robot1", tile_ids=tiles)]
+        plan.tasks += [AssemblyTask(robot_name=f"robot{k}", tile_ids=[]) for k in range(2, team + 1)]
         self.plan_pub.publish(plan)
 
     def auctioneer_says(self, seconds: float, plan_revision: int, lost: list[str]) -> None:
@@ -183,3 +185,24 @@ def test_a_repeated_announcement_gets_the_same_bid_again() -> None:
     finally:
         robot.close()
     assert robot.bids[0].bid == robot.bids[1].bid and robot.bids[1].auction_id == 5
+
+
+def test_the_workload_in_a_bid_counts_the_plans_robots_crowding_the_caches() -> None:
+    """Eight robots on paper_14's five caches: every pick costs (8 / 5 - 1) x 3.5 s more, as in the
+    plan (TimeModel.for_team); the robot's w_i says so."""
+    structure = load_structure(REPO / "config" / "structures" / "paper_14.yaml")
+    waiting = 4  # the octagon on 1, 2, 3 and 6, none of them placed: robot1 keeps it in its task
+    robot = RobotUnderTest()
+    try:
+        assert robot.spin_until(lambda: robot.announce_pub.get_subscription_count() > 0, 30.0), "no assembly_node"
+        robot.structure_pub.publish(structure_to_msg(structure))
+        robot.plan(0, [waiting], structure.name, team=8)
+        robot.spin_until(lambda: False, 1.0)
+        robot.announce_pub.publish(AuctionAnnouncement(auction_id=1, tile_id=14, bidders=["robot1"]))
+        assert robot.spin_until(lambda: len(robot.bids) == 1, 5.0), "no bid"
+    finally:
+        robot.close()
+    crowded = TimeModel().for_team(structure, 8)
+    assert crowded.crowding_time == pytest.approx(0.6 * 3.5)
+    assert robot.bids[0].workload == pytest.approx(crowded.tile_cost(structure, waiting))
+    assert robot.goals == []
