@@ -111,7 +111,8 @@ def offline(bag: str, *args: str) -> list[dict[str, Any]]:
     return [json.loads(line) for line in result.stdout.splitlines()]
 
 
-def replay(probe: Probe, bag: str) -> subprocess.CompletedProcess[str]:
+def replay(probe: Probe, bag: str, pacing: tuple[str, ...] = ("--rate", "0", "--gap", "1.0")) -> (
+        subprocess.CompletedProcess[str]):
     return subprocess.run(
         [
             ros2_command(),
@@ -120,10 +121,7 @@ def replay(probe: Probe, bag: str) -> subprocess.CompletedProcess[str]:
             "replay_bag",
             "--bag",
             bag,
-            "--rate",
-            "0",
-            "--gap",
-            "1.0",
+            *pacing,
             "--wait-subscribers",
             "20",
             "--start-delay",
@@ -317,9 +315,12 @@ def test_bad_parameters_stop_the_node_with_one_line(param: str, text: str) -> No
     assert len(lines) == 1 and text in lines[0] and "Traceback" not in result.stderr
 
 
-def record_scene_with_robots(path: Path) -> tuple[tuple[int, ...], list[tuple[float, float, float]]]:
+def record_scene_with_robots(
+    path: Path, robots_after: int = 0
+) -> tuple[tuple[int, ...], list[tuple[float, float, float]]]:
     """Two scans of the paper structure with tile 14 gone and two robots standing beside it,
-    their overhead poses recorded as the overhead cameras publish them."""
+    their overhead poses recorded as the overhead cameras publish them (`robots_after` ns after the
+    scan: the other robots' poses come on their own topics, in no order with the scan)."""
     paper = structure()
     rng = np.random.default_rng(41)
     scene = Scene(paper, tuple(paper.tile_ids), (14,))
@@ -332,7 +333,7 @@ def record_scene_with_robots(path: Path) -> tuple[tuple[int, ...], list[tuple[fl
             stamp = (100 + k) * 10**9
             bag.write_pose(stamp - 5_000_000, *view.overhead)
             for n, robot in enumerate(view.robots):
-                bag.write_pose(stamp - 5_000_000, *robot, robot=f"robot{n + 1}")
+                bag.write_pose(stamp - 5_000_000 + robots_after, *robot, robot=f"robot{n + 1}")
             bag.write_scan(stamp, simulator.scan(scene.kinect_scene, view.camera))
     return scene.removed, list(view.robots)
 
@@ -353,6 +354,21 @@ def test_other_robots_overhead_poses_are_followed_and_their_points_left_out(prob
     assert any("(2 other robots in the scene)" in m for m in probe.diagnostics), probe.diagnostics
     states = {s.tile_id: STATE_NAMES[s.state] for s in probe.states[-1].states}
     assert states == {int(k): v["state"] for k, v in offline_states[-1]["tiles"].items()}
+
+
+def test_a_scan_waits_for_the_other_robots_poses_of_its_moment(probe: Probe, tmp_path: Path) -> None:
+    """The robots' poses come 0.1 s after the scan they belong to (as the simulator's can, when the
+    executor takes the scan first): vi_node waits for them and leaves both robots out."""
+    bag = tmp_path / "robots_late"
+    record_scene_with_robots(bag, robots_after=100_000_000)
+    with vi_node(probe, f"structure_file:={PAPER}", "other_robots:=robot1,robot2") as node:
+        assert probe.spin_until(lambda: probe.node.count_publishers("/tile_states") > 0, 30), "vi_node did not start"
+        result = replay(probe, str(bag), pacing=("--rate", "1"))  # as recorded: the poses 0.1 s late
+        assert result.returncode == 0, result.stderr
+        assert probe.spin_until(lambda: len(probe.states) >= 2, 30), probe.diagnostics
+        assert node.poll() is None
+    classified = [m for m in probe.diagnostics if m.startswith("classified")]
+    assert classified and all("(2 other robots in the scene)" in m for m in classified), probe.diagnostics
 
 
 def test_scans_are_inspected_while_the_simulated_clock_stands_still(probe: Probe) -> None:

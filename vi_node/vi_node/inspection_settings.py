@@ -136,7 +136,8 @@ class InspectionSettings:
         "", "default: robots whose overhead_pose to follow, comma-separated (empty: every one that appears)"
     )
     robot_pose_tolerance: float = setting(
-        0.5, "default: largest time between a scan and another robot's overhead pose used for it (s)"
+        0.5, "default: largest time between a scan and another robot's overhead pose used for it; a scan waits "
+        "up to this long (wall clock) for the poses of its moment (s)"
     )
     in_hand_memory: float = setting(
         15.0, "a tile a robot was placing this recently before a scan (/robot_status) may lie there unreported: "

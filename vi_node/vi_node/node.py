@@ -341,8 +341,15 @@ class ViNode(Node):
                 reason = f"dropped a scan: no overhead pose within {self.settings.pose_tolerance:g} s of it"
                 self._unclassified(msg, DiagnosticStatus.WARN, reason)
             return
+        if self.team.behind(stamp, self.other_robots.subscriptions) and waited < self.settings.robot_pose_tolerance:
+            return  # a robot left unmasked beside a tile makes the tile look moved: wait for its pose
         if self._take_pending(msg):
             robots = self.team.at(stamp, int(self.settings.robot_pose_tolerance * 1e9))
+            if len(robots) < len(self.team.buffers):
+                self.get_logger().warning(
+                    f"{len(self.team.buffers) - len(robots)} robot(s) without an overhead pose within "
+                    f"{self.settings.robot_pose_tolerance:g} s of a scan: their points are not left out",
+                    throttle_duration_sec=10.0)
             self._inspect(msg, match[0], robots)
 
     def _take_pending(self, msg: PointCloud2) -> bool:

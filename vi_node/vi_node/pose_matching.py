@@ -61,6 +61,12 @@ class TeamPoses:
     def add(self, robot: str, stamp_ns: int, pose: OverheadPose) -> None:
         self.buffers.setdefault(robot, PoseBuffer(self.capacity)).add(stamp_ns, pose)
 
+    def behind(self, stamp_ns: int, robots: Iterable[str]) -> list[str]:
+        """Those of `robots` with no pose as new as `stamp_ns`: their pose of that moment may still be
+        on its way (each comes on its own topic, in no order with the scan)."""
+        latest = {name: buffer.latest_stamp for name, buffer in self.buffers.items()}
+        return sorted(name for name in robots if latest.get(name) is None or latest[name] < stamp_ns)
+
     def latest(self, robots: list[str]) -> list[OverheadPose]:
         """The latest pose of each of `robots` heard of."""
         buffers = [self.buffers[r] for r in robots if r in self.buffers]
