@@ -180,8 +180,9 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
     index = {t: k for k, t in enumerate(ids)}
     tiles = [structure.tiles[t] for t in ids]
     centroids = np.array([t.centroid for t in tiles], dtype=float).reshape(n, 3)
-    travel = np.array([time_model.travel_time(structure, t) for t in ids], dtype=float)
-    back = np.array([time_model.return_time(structure, t) for t in ids], dtype=float)
+    to_tile, to_cache = time_model.trips(structure)
+    travel = np.array([to_tile[t] for t in ids], dtype=float)
+    back = np.array([to_cache[t] for t in ids], dtype=float)
     # TimeModel.tile_cost, without working out the trips a second time
     cost = np.array([time_model.handling_time(t.type_name) for t in tiles], dtype=float).reshape(n) + travel + back
     place = np.array([time_model.place_duration(t.type_name) for t in tiles], dtype=float)

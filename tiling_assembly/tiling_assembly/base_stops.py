@@ -36,11 +36,11 @@ MAX_CELLS = 40_000  # 1 cm cells up to 2 m x 2 m; bigger footprints get coarser 
 
 @dataclass(frozen=True)
 class BaseGeometry:
-    """The base of an assembly robot, as far as where it can stop matters."""
+    """The base of an assembly robot, as far as where it can stop matters (defaults: `TimeModel`)."""
 
-    approach_distance: float = 0.25  # m from a tile's centre to where the base stops (the arm's reach)
-    base_size: tuple[float, float] = (0.33, 0.33)  # m, x and y size of the base's footprint (a box)
-    clearance: float = 0.03  # m the base keeps from every tile of the structure
+    approach_distance: float  # m from a tile's centre to where the base stops (the arm's reach)
+    base_size: tuple[float, float]  # m, x and y size of the base's footprint (a box)
+    clearance: float  # m the base keeps from every tile of the structure
 
 
 @dataclass(frozen=True)

@@ -98,19 +98,23 @@ class TimeModel:
         return BaseGeometry(self.approach_distance, (float(self.base_size[0]), float(self.base_size[1])),
                             self.base_clearance)
 
+    def trips(self, structure: Structure) -> tuple[dict[int, float], dict[int, float]]:
+        """Per tile id: `travel_time` and `return_time`, worked out once for the whole structure."""
+        return _trips(structure.site, self.base(), self.cache_standoff, self.travel_speed)
+
     def travel_time(self, structure: Structure, tile_id: int) -> float:
         """Seconds of the trip from the stop beside the tile's type cache to the stop beside the tile."""
-        return _trips(structure.site, self.base(), self.cache_standoff, self.travel_speed)[0][tile_id]
+        return self.trips(structure)[0][tile_id]
 
     def return_time(self, structure: Structure, tile_id: int) -> float:
         """Seconds of the trip from the stop beside the tile back to a cache, on average over the
         caches the structure's tiles use."""
-        return _trips(structure.site, self.base(), self.cache_standoff, self.travel_speed)[1][tile_id]
+        return self.trips(structure)[1][tile_id]
 
     def tile_cost(self, structure: Structure, tile_id: int) -> float:
         """Seconds a robot spends on one tile: to the cache and back, pick and place."""
-        travel = self.travel_time(structure, tile_id) + self.return_time(structure, tile_id)
-        return self.handling_time(structure.tiles[tile_id].type_name) + travel
+        to_tile, to_cache = self.trips(structure)
+        return self.handling_time(structure.tiles[tile_id].type_name) + to_tile[tile_id] + to_cache[tile_id]
 
     def workload(self, structure: Structure, tile_ids: Iterable[int]) -> float:
         """Total cost of a set of tiles (s): a robot's workload w_i."""
