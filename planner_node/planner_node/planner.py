@@ -205,23 +205,19 @@ def plan_assembly(
     method: Method = Method.DEFAULT,
     improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT,
     help_neighbours: bool = True,
-    robot_starts: Sequence[tuple[float, float]] = (),
 ) -> Plan:
     """Split `structure` among the robots and order each robot's tiles (see the module docstring).
 
     `help_neighbours` (default method): let a robot that would wait place ready tiles of another
     robot when that finishes the build sooner; without it every robot keeps to its own connected
-    region. `robot_starts` (x, y in the structure's frame per robot, m): where the robots stand at
-    the start, each driving to its first tile's cache first; none: they start at those caches.
+    region.
     """
     check_robot_names(robot_names)
     n_robots = len(robot_names)
-    if robot_starts and len(robot_starts) != n_robots:
-        raise PlanningError(f"{len(robot_starts)} start positions for {n_robots} robots")
     time_model = time_model.for_team(structure, n_robots)  # robots crowding the caches cost time
     stopwatch = _Stopwatch()
     with stopwatch.stage("graph"):
-        graph = build_graph(structure, time_model, robot_starts)
+        graph = build_graph(structure, time_model)
         bound = makespan_lower_bound(graph, n_robots)
     if len(graph) == 0:
         sequenced = _nothing_to_place(graph, n_robots=n_robots)
