@@ -110,3 +110,26 @@ def test_a_trial_may_be_given_its_own_wall_clock_limit(tmp_path: Path) -> None:
     assert Experiment(parse_args([*common, "--wall-limit", "5400"])).wall_limit == 5400.0
     with pytest.raises(SystemExit):
         parse_args([*common, "--wall-limit", "-1"])
+
+
+@pytest.mark.parametrize("robots, expected", [
+    (2, [-0.6, -0.9, 0.6, -0.9]),  # config/tiling_sim.yaml's, which fit two robots
+    (3, None),  # spread round the structure, as the simulated world spreads them
+])
+def test_the_planner_is_told_where_the_simulated_robots_start(tmp_path: Path, robots: int, expected: list | None
+                                                              ) -> None:
+    from tiling_assembly.structure_file import load_structure
+    from tiling_sim.experiment import Experiment, TrialSetup, parse_args
+    from tiling_sim.sim_settings import RobotBodySettings
+
+    structure = REPO / "config/structures/paper_14.yaml"
+    config = parse_args(["--structure", str(structure), "--robots", str(robots), "--report", str(tmp_path),
+                         "--config", str(REPO / "config")])
+    commands = Experiment(config).node_commands(TrialSetup(1, 1, 0, False))
+    (given,) = [a.removeprefix("robot_start_xy:=") for a in commands["planner_node"] if a.startswith("robot_start_xy")]
+    xy = [float(v) for v in given.strip("[]").split(",")]
+    if expected is None:
+        names = [f"robot{k}" for k in range(1, robots + 1)]
+        spread = RobotBodySettings(robot_names=names, robot_start_xy=[0.0]).robot_starts(load_structure(structure))
+        expected = [v for name in names for v in spread[name]]
+    assert xy == pytest.approx(expected, abs=1e-4)

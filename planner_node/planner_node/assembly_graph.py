@@ -11,6 +11,7 @@ The planner works on array indices 0..n-1 (tiles in increasing id order); `tile_
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from itertools import chain, pairwise
@@ -54,6 +55,17 @@ class AssemblyGraph:
     layer: IntArray  # (n,) 0 on the floor, else one above the highest support
     component: IntArray  # (n,) connected component of the contact graph
     n_components: int
+    # (robots, n) s from where each robot stands at the start to the cache of each tile's type, the
+    # trip before its first tile; (0, n) when the robots start at their caches (the paper's)
+    first_trip: FloatArray
+
+    def first_trips(self, n_robots: int) -> list[list[float]]:
+        """`first_trip` as lists for `n_robots` robots (zeros when the robots start at their caches)."""
+        if len(self.first_trip) == 0:
+            return [[0.0] * len(self)] * n_robots
+        if len(self.first_trip) != n_robots:
+            raise ValueError(f"the graph has start positions for {len(self.first_trip)} robots, not {n_robots}")
+        return self.first_trip.tolist()
 
     def __len__(self) -> int:
         return len(self.tile_ids)
@@ -173,8 +185,11 @@ def _layers(support_lists: tuple[tuple[int, ...], ...], dependent_lists: tuple[t
     return layer
 
 
-def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
-    """The assembly graph of `structure` with tile costs under `time_model`."""
+def build_graph(
+    structure: Structure, time_model: TimeModel, robot_starts: Sequence[tuple[float, float]] = ()
+) -> AssemblyGraph:
+    """The assembly graph of `structure` with tile costs under `time_model`; with `robot_starts`
+    (x, y per robot, m), the trip of each robot to its first tile's cache too."""
     ids = list(structure.tiles)
     n = len(ids)
     index = {t: k for k, t in enumerate(ids)}
@@ -218,4 +233,5 @@ def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
         layer=np.array(_layers(support_lists, dependent_lists), dtype=np.int64),
         component=component,
         n_components=int(n_components),
+        first_trip=time_model.start_trips(structure, robot_starts) if len(robot_starts) else np.zeros((0, n)),
     )

@@ -67,6 +67,9 @@ class PlannerParameters:
     base_size: tuple[float, float] = setting(
         _DEFAULT_TIMES.base_size, "x and y size of a robot base's footprint, which stops clear of the structure (m)")
     base_clearance: float = setting(_DEFAULT_TIMES.base_clearance, "How far a robot base keeps from every tile (m)")
+    robot_start_xy: tuple[float, ...] = setting(
+        (0.0,), "x1, y1, x2, y2, ... where the robots stand when the build starts, in the structure's frame (m): "
+        "each first drives to its first tile's cache. Fewer than 2 numbers: they start at those caches (the paper's)")
 
     def robots(self) -> list[str]:
         """robot_names when given, else robot1..robotN."""
@@ -82,6 +85,11 @@ class PlannerParameters:
             "improve_time_limit": self.improve_time_limit,
             "help_neighbours": self.help_neighbours,
         }
+
+    def robot_starts(self) -> list[tuple[float, float]]:
+        """(x, y) per robot from robot_start_xy; none when it has fewer than 2 numbers."""
+        xy = self.robot_start_xy
+        return [(xy[k], xy[k + 1]) for k in range(0, len(xy) - 1, 2)] if len(xy) >= 2 else []
 
     def time_model(self) -> TimeModel:
         return TimeModel(
@@ -110,6 +118,9 @@ class PlannerParameters:
                 check_robot_names(list(self.robot_names))
             except PlanningError as error:
                 raise ParameterError(f"robot_names: {error}") from None
+        xy = self.robot_start_xy
+        if len(xy) >= 2 and (len(xy) % 2 or not all(math.isfinite(v) for v in xy)):
+            raise ParameterError(f"robot_start_xy must be x, y pairs of numbers (m), got {list(xy)}")
         try:
             self.time_model()
         except (TypeError, ValueError) as error:
@@ -131,6 +142,7 @@ _FIELDS = {
     "approach_distance": float,
     "base_size": tuple,
     "base_clearance": float,
+    "robot_start_xy": tuple,
 }
 
 

@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     tic = time.perf_counter()
     structure = load_structure(args.structure)
     loaded = time.perf_counter()
-    plan = plan_assembly(structure, names, parameters.time_model(), **options)
+    plan = plan_assembly(structure, names, parameters.time_model(), **options, robot_starts=parameters.robot_starts())
     planned = time.perf_counter()
     if args.format == "table":
         print(plan_table(plan, structure))

@@ -205,15 +205,20 @@ def plan_assembly(
     method: Method = Method.DEFAULT,
     improve_time_limit: float = DEFAULT_IMPROVE_TIME_LIMIT,
     help_neighbours: bool = True,
+    robot_starts: Sequence[tuple[float, float]] = (),
 ) -> Plan:
     """Split `structure` among the robots and order each robot's tiles (see the module docstring).
 
     `help_neighbours` (default method): let a robot that would wait place ready tiles of another
     robot when that finishes the build sooner; without it every robot keeps to its own connected
-    region.
+    region. `robot_starts` (x, y in the structure's frame per robot, m): where the robots stand at
+    the start; the tasks are made as if every robot started at its first tile's cache, then handed
+    to the robots nearest those caches, and the plan's times count each robot's drive there.
     """
     check_robot_names(robot_names)
     n_robots = len(robot_names)
+    if robot_starts and len(robot_starts) != n_robots:
+        raise PlanningError(f"{len(robot_starts)} start positions for {n_robots} robots")
     time_model = time_model.for_team(structure, n_robots)  # robots crowding the caches cost time
     stopwatch = _Stopwatch()
     with stopwatch.stage("graph"):
@@ -233,8 +238,37 @@ def plan_assembly(
                 graph, allocation=allocation, n_robots=n_robots, good_enough=GOOD_ENOUGH * bound.strongest,
                 improve_time_limit=improve_time_limit, help_neighbours=help_neighbours, stopwatch=stopwatch,
             )
+    if robot_starts:
+        with stopwatch.stage("starts"):
+            graph = replace(graph, first_trip=time_model.start_trips(structure, robot_starts))
+            sequenced = _handed_to_the_nearest(graph, sequenced)
     stats = replace(sequenced.stats, seconds=stopwatch.stop())
     return _package(structure, graph, robot_names, sequenced.orders, sequenced.result, method, bound, stats)
+
+
+def _handed_to_the_nearest(graph: AssemblyGraph, sequenced: _Sequenced) -> _Sequenced:
+    """The tasks handed to the robots so that the last to finish, its drive to its first tile's
+    cache counted (`graph.first_trip`), finishes soonest, then the drives are shortest in all;
+    simulated with those drives.
+
+    Only who takes which task changes: planned with the drives, the orders start every robot at the
+    cache nearest to it, which is often the same cache for all, and nothing charges robots for
+    meeting there (paper_14: both robots placed the bottom row in lockstep, 10% over plan)."""
+    from scipy.optimize import linear_sum_assignment
+
+    orders = sequenced.orders
+    drives = np.array([[trips[order[0]] if order else 0.0 for order in orders] for trips in graph.first_trip])
+    finish = drives + sequenced.result.robot_finish[None, :]
+    limits = np.unique(finish)
+    low, high = 0, len(limits) - 1  # the least limit on finish times that every robot can keep
+    while low < high:
+        middle = (low + high) // 2
+        over = (finish > limits[middle]).astype(float)
+        robots, tasks = linear_sum_assignment(over)
+        low, high = (low, middle) if over[robots, tasks].sum() == 0 else (middle + 1, high)
+    robots, tasks = linear_sum_assignment(drives + (finish > limits[low]) * (1.0 + drives.sum()))
+    handed = [orders[k] for _, k in sorted(zip(robots.tolist(), tasks.tolist(), strict=True))]
+    return _Sequenced(handed, simulate_orders(graph, handed), sequenced.stats)
 
 
 def _nothing_to_place(graph: AssemblyGraph, *, n_robots: int) -> _Sequenced:

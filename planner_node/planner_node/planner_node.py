@@ -56,7 +56,8 @@ class PlannerNode(Node):
         self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.revision = 0
         self.plan = plan_assembly(
-            self.structure, self.known_robots, self.time_model, **self.parameters.planning_options()
+            self.structure, self.known_robots, self.time_model, **self.parameters.planning_options(),
+            robot_starts=self.parameters.robot_starts(),
         )
         structure_msg = structure_to_msg(self.structure)
         structure_msg.header.stamp = self.get_clock().now().to_msg()

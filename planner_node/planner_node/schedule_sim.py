@@ -11,9 +11,10 @@ works through its tiles in order; one tile is one round trip of the time model
     place_end     the tile is placed: tiles resting on it may be placed from now on
     finish        the robot is back at a cache (return time): it starts its next tile
 
-A robot starts at t = 0 at the cache of its first tile (no trip from a home position: the paper's
-robots start at their parts caches). A robot's busy time is therefore exactly its workload (the
-sum of its tiles' costs), and its finish time is workload + wait. The makespan is the time the last
+A robot starts at t = 0 at the cache of its first tile (the paper's robots start at their parts
+caches), or, when the graph knows where the robots stand (`AssemblyGraph.first_trip`), drives
+there first. A robot's busy time is exactly its workload (the sum of its tiles' costs), and its
+finish time is that trip + workload + wait. The makespan is the time the last
 robot is back from its last tile. A plan whose orders contradict each other (robot A waits for a
 tile that robot B only places after a tile waiting for A) deadlocks: the simulation stops and
 names the tiles each blocked robot is waiting to place.
@@ -94,6 +95,7 @@ def simulate_orders(graph: AssemblyGraph, orders: Sequence[Sequence[int]]) -> Si
     waiting_robot: dict[int, int] = {}  # tile index -> robot blocked with it at the head
 
     robots = len(orders)
+    first_trip = graph.first_trips(robots)
     clock = [0.0] * robots
     busy = [0.0] * robots
     wait = [0.0] * robots
@@ -114,6 +116,8 @@ def simulate_orders(graph: AssemblyGraph, orders: Sequence[Sequence[int]]) -> Si
             for s in supports[t]:
                 if place_end[s] > ready:
                     ready = place_end[s]
+            if k == 0:
+                now += first_trip[r][t]
             trip = travel[t]
             start[t] = now
             arrived = now + pick[t] + trip

@@ -144,6 +144,7 @@ class TeamSequencer:
         self.travel_time = graph.travel.tolist()  # one way, cache to tile
         self.back_time = graph.back.tolist()  # tile to a cache
         self.place_time = graph.place.tolist()
+        self.first_trip = graph.first_trips(n_robots)  # to the first tile's cache, from where the robot stands
         self.cost, self.layer = graph.cost.tolist(), graph.layer.tolist()
         self.distance = (distance if distance is not None else np.zeros(n)).tolist()
         self.supports, self.dependents = graph.support_lists, graph.dependent_lists
@@ -285,12 +286,14 @@ class TeamSequencer:
             self.take_over(t, robot=robot)
         self.scheduled[t] = True
         self.remaining_work[robot] -= self.cost[t]
+        if now != self.free_at[robot]:
+            self.delayed = True
+        if not self.orders[robot]:
+            now += self.first_trip[robot][t]
         travel, supports_end = self.travel_time[t], self.supports_end[t]
         arrive = now + self.pick_time[t] + travel
         begin = supports_end if supports_end > arrive else arrive
         end = begin + self.place_time[t]
-        if now != self.free_at[robot]:
-            self.delayed = True
         self.free_at[robot] = end + self.back_time[t]
         self.orders[robot].append(t)
         if not self.delayed:  # as schedule_sim.simulate_orders works them out

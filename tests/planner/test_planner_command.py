@@ -96,6 +96,10 @@ def test_parameter_file_sets_the_time_model(tmp_path: Path) -> None:
     big_file.write_text("/**:\n  ros__parameters:\n    base_size: [0.6, 0.6]\n")
     big = json.loads(plan("--structure", str(PAPER), "--robots", "2", "--params", str(big_file)).stdout)
     assert abs(big["lower_bound"] - slow["lower_bound"]) > 1.0
+    away_file = tmp_path / "away.yaml"  # both robots 2 m from every cache: the plan takes the drive
+    away_file.write_text("/**:\n  ros__parameters:\n    robot_start_xy: [0.0, 3.0, 0.0, 3.0]\n")
+    away = json.loads(plan("--structure", str(PAPER), "--robots", "2", "--params", str(away_file)).stdout)
+    assert away["makespan"] > slow["makespan"] + 10.0
 
 
 def test_config_file_holds_the_defaults() -> None:
@@ -113,6 +117,9 @@ def test_config_file_holds_the_defaults() -> None:
         ("/**:\n  ros__parameters:\n    robot_names: [a, b, c]\n", "robot_names"),
         ("/**:\n  ros__parameters:\n    base_size: [0.3]\n", "base_size"),
         ("/**:\n  ros__parameters:\n    base_size: [wide, long]\n", "base_size"),
+        ("/**:\n  ros__parameters:\n    robot_start_xy: [0.0, 1.0, 2.0]\n", "robot_start_xy must be x, y pairs"),
+        ("/**:\n  ros__parameters:\n    robot_start_xy: [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]\n",
+         "3 start positions for 2 robots"),
         ("planner: {}\n", "ros__parameters"),
         ("[1, 2\n", "YAML"),
     ],

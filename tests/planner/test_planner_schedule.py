@@ -14,6 +14,7 @@ from planner_node.assembly_graph import build_graph
 from planner_node.initial_allocation import exterior_seeds, initial_allocation
 from planner_node.makespan_bound import makespan_lower_bound
 from planner_node.node_trading import RegionBorders
+from planner_node.planner import PlanningError, plan_assembly
 from planner_node.schedule_sim import simulate_plan
 from planner_node.structure_generators import pyramid, random_cluster
 from tiling_assembly.structure_file import load_structure, parse_structure
@@ -282,3 +283,42 @@ def test_the_trip_back_goes_to_the_caches_in_use() -> None:
         assert model.return_time(structure, tile) == pytest.approx(back_from(x))
         assert model.tile_cost(structure, tile) == pytest.approx(
             model.handling_time(structure.tiles[tile].type_name) + model.travel_time(structure, tile) + back_from(x))
+
+
+def test_robots_standing_away_from_their_caches_drive_there_first() -> None:
+    """robot1 stands 1 m beyond the block cache (0, -1), robot2 on the beam cache (0.05, 1): robot1
+    drives 1 m at 0.5 m/s before it picks, robot2 starts at once."""
+    structure = arch()
+    graph = build_graph(structure, TIMES, [(0.0, -2.0), (0.05, 1.0)])
+    to_blocks, to_beam = [2.0, math.hypot(0.05, 3.0) / 0.5], [math.hypot(0.05, 2.0) / 0.5, 0.0]
+    expected = [[to_blocks[0], to_blocks[0], to_blocks[1]], [to_beam[0], to_beam[0], to_beam[1]]]
+    np.testing.assert_allclose(graph.first_trip, expected)
+    schedule = simulate_plan(structure, TIMES, {"robot1": [1, 2], "robot2": [3]}, graph=graph)
+    one = schedule.timing(1)
+    assert (one.start, one.arrive) == pytest.approx((2.0, 2.0 + 5 + 2))
+    robot1 = schedule.robots[0]
+    assert robot1.finish == pytest.approx(2.0 + robot1.busy + robot1.wait)  # the drive is not work
+    beam = schedule.timing(3)
+    assert beam.start == 0.0 and beam.place_start == pytest.approx(schedule.timing(2).place_end)
+
+
+def test_a_plan_for_robots_away_from_their_caches_hands_each_the_task_that_starts_near_it() -> None:
+    """paper_14's two robots stand next to the long-rectangle cache, one by the trapezoids, one by the
+    octagons. The tasks are those made for robots starting at their caches (one begins with a
+    trapezoid, one with a long rectangle); the robot by the trapezoids takes the first, and the
+    plan's finish counts the drives."""
+    paper = load_structure(STRUCTURES / "paper_14.yaml")
+    starts = [(-0.6, -0.9), (0.6, -0.9)]
+    at_caches = plan_assembly(paper, ["robot1", "robot2"], TimeModel())
+    away = plan_assembly(paper, ["robot1", "robot2"], TimeModel(), robot_starts=starts)
+    assert sorted(t.tile_ids for t in away.tasks) == sorted(t.tile_ids for t in at_caches.tasks)
+    assert [paper.tiles[t.tile_ids[0]].type_name for t in away.tasks] == ["trapezoid", "long_rectangle"]
+    drives = TimeModel().start_trips(paper, starts)
+    ids = list(paper.tiles)
+    for robot, task in enumerate(away.tasks):
+        first = ids.index(task.tile_ids[0])
+        assert drives[robot][first] < 3.0  # a cache within 0.7 m (the farthest is 2 m away)
+        assert task.estimated_finish >= drives[robot][first] + task.workload - 1e-9
+    assert at_caches.makespan <= away.makespan <= at_caches.makespan + 3.0
+    with pytest.raises(PlanningError, match="3 start positions for 2 robots"):
+        plan_assembly(paper, ["robot1", "robot2"], TimeModel(), robot_starts=[*starts, (0.0, 0.0)])

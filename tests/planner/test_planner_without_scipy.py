@@ -20,17 +20,25 @@ from planner_node.initial_allocation import initial_allocation, nearest_seed_dis
 from planner_node.schedule_sim import simulate_orders
 from planner_node.sequencing import Policy, sequence_tiles
 from planner_node.structure_generators import GENERATORS
+from tiling_assembly.structure import Structure
 from tiling_assembly.structure_file import load_structure, parse_structure
 from tiling_assembly.time_model import TimeModel
 
 
-def _graphs() -> list[AssemblyGraph]:
+def _structures() -> list[Structure]:
     structures = [load_structure(p) for p in sorted(STRUCTURES.glob("*.yaml"))]
-    structures += [parse_structure(make(n), kind) for kind, make in GENERATORS.items() for n in (40, 700)]
-    return [build_graph(s, TimeModel()) for s in structures]
+    return structures + [parse_structure(make(n), kind) for kind, make in GENERATORS.items() for n in (40, 700)]
 
 
-GRAPHS = _graphs()
+def _corners(structure: Structure) -> list[tuple[float, float]]:
+    """Four robots standing a metre off the corners of the structure's bounds."""
+    (x0, y0, _), (x1, y1, _) = structure.bounds
+    return [(x0 - 1.0, y0 - 1.0), (x1 + 1.0, y0 - 1.0), (x1 + 1.0, y1 + 1.0), (x0 - 1.0, y1 + 1.0)]
+
+
+GRAPHS = [build_graph(s, TimeModel()) for s in _structures()]
+# the same, with the robots starting away from their caches
+STARTED_GRAPHS = [build_graph(s, TimeModel(), _corners(s)) for s in _structures()]
 
 
 def _point_sets() -> list[np.ndarray]:
@@ -113,9 +121,10 @@ def test_the_graphs_layers_and_dependents_are_the_structures(structure: object) 
     assert [tuple(ids[d] for d in deps) for deps in graph.dependent_lists] == [structure.supported_by[t] for t in ids]
 
 
-@pytest.mark.parametrize("graph", GRAPHS)
+@pytest.mark.parametrize("graph", GRAPHS + STARTED_GRAPHS)
 def test_a_pass_without_delays_is_its_own_simulation(graph: AssemblyGraph) -> None:
-    """Sequencings that give their schedule give exactly what simulating their orders gives."""
+    """Sequencings that give their schedule give exactly what simulating their orders gives, also
+    when the robots drive to their first caches from elsewhere."""
     owner = initial_allocation(graph, 4).owner
     for policy, margin in ((Policy.CRITICAL_PATH, None), (Policy.MAX_SLACK, None), (Policy.CRITICAL_PATH, 0.0),
                            (Policy.CRITICAL_PATH, 10.0)):

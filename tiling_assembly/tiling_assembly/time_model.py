@@ -11,7 +11,9 @@ robots without other robots (pyramid_91 with 4 robots, paper_14 with 2), per rob
 trips to the tile's centre and back to its own cache were 35 s short to 80 s over on pyramid_91
 (a plan balanced on them left one robot working 9% longer than planned) and 9 s over on paper_14.
 The planner balances these costs, the schedule simulation and the robots' bids (section 2.3: w_i,
-the remaining workload) use them.
+the remaining workload) use them. Where the robots stand at the start is not the paper's (its
+robots start at their caches): when it is known, `start_trips` is each robot's drive to the cache
+of its first tile, which the schedule simulation adds before that tile.
 
 Robots working close to each other cost time too, and most where they meet most: at the parts
 caches, which every robot visits for every tile. A robot that finds the stop beside a cache taken
@@ -25,7 +27,7 @@ lost 0.1 s per placement, and is charged nothing.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
@@ -115,6 +117,17 @@ class TimeModel:
         """Seconds a robot spends on one tile: to the cache and back, pick and place."""
         to_tile, to_cache = self.trips(structure)
         return self.handling_time(structure.tiles[tile_id].type_name) + to_tile[tile_id] + to_cache[tile_id]
+
+    def start_trips(self, structure: Structure, starts: Sequence[tuple[float, float]]) -> np.ndarray:
+        """(robots, tiles in `structure.tiles` order): seconds from where each robot stands at the
+        start to the stop beside the cache of each tile's type (0 for a tile without a cache)."""
+        ids = list(structure.tiles)
+        caches = [structure.caches.get(structure.tiles[t].type_name) for t in ids]
+        has_cache = np.array([c is not None for c in caches], dtype=bool)
+        towards = np.array([c if c is not None else (0.0, 0.0) for c in caches], dtype=float).reshape(-1, 2)
+        where = np.asarray(starts, dtype=float).reshape(-1, 1, 2)
+        trip = np.maximum(np.linalg.norm(where - towards[None, :, :], axis=-1) - self.cache_standoff, 0.0)
+        return np.where(has_cache[None, :], trip / self.travel_speed, 0.0)
 
     def workload(self, structure: Structure, tile_ids: Iterable[int]) -> float:
         """Total cost of a set of tiles (s): a robot's workload w_i."""

@@ -45,6 +45,7 @@ from tiling_sim.experiment_result import ExperimentConfig, ExperimentResult
 from tiling_sim.network_plan import DEFAULT_NETNS_TIME_FACTOR, NetworkSettings, Outage
 from tiling_sim.process_group import ProcessGroup
 from tiling_sim.ros_domain import claim_domain_id, isolate
+from tiling_sim.sim_settings import RobotBodySettings
 from tiling_sim.team_network import TeamNetwork
 from tiling_sim.trial_record import TrialRecord, detection_stats
 from tiling_sim.virtual_hosts import VirtualHostsError
@@ -139,17 +140,26 @@ class Experiment:
         paths = [self.config.config_dir / name for name in files]
         return [arg for path in paths if path.exists() for arg in ("--params-file", str(path))]
 
-    def start_positions_override(self) -> list[str]:
-        """Robot start positions around the structure when the parameter file's do not fit the team."""
+    def file_start_positions(self) -> list[float] | None:
+        """The robots' start positions of the parameter file, when they fit the team."""
         path = self.config.config_dir / "tiling_sim.yaml"
         try:
             document = yaml.safe_load(path.read_text()) or {}
             starts = document["/**"]["ros__parameters"]["robot_start_xy"]
         except (OSError, yaml.YAMLError, KeyError, TypeError):
             starts = []
-        if isinstance(starts, list) and len(starts) == 2 * self.config.robots:
-            return []
-        return ["-p", "robot_start_xy:=[0.0]"]
+        fits = isinstance(starts, list) and len(starts) == 2 * self.config.robots
+        return [float(v) for v in starts] if fits else None
+
+    def start_positions_override(self) -> list[str]:
+        """Robot start positions around the structure when the parameter file's do not fit the team."""
+        return [] if self.file_start_positions() is not None else ["-p", "robot_start_xy:=[0.0]"]
+
+    def start_positions(self) -> list[float]:
+        """x1, y1, x2, y2, ...: where the simulated robots stand at the start (the planner is told)."""
+        body = RobotBodySettings(robot_names=list(self.config.robot_names),
+                                 robot_start_xy=self.file_start_positions() or [0.0])
+        return [v for xy in body.robot_starts(self.structure).values() for v in xy]
 
     def computers(self) -> list[tuple[TeamRole, str]]:
         """Every computer of the team as (role, robot name; "" for the base station and a single VI
@@ -192,6 +202,8 @@ class Experiment:
         command = [executable(node.package, node.executable), "--ros-args",
                    *(["-r", f"__ns:={namespace}"] if namespace else []), *self.params(*node.parameters),
                    *[arg for need in node.needs for arg in ("-p", needs[need])], "-p", "use_sim_time:=true"]
+        if node.executable == "planner_node":
+            command += ["-p", f"robot_start_xy:=[{', '.join(f'{v:.4f}' for v in self.start_positions())}]"]
         if node.executable == "auction_node" and not c.robots_find_missing:
             command += ["-p", "robots_find_missing:=false"]
         if node.executable == "assembly_node" and robot == c.silent_robot:
@@ -296,7 +308,9 @@ class Experiment:
 
     def run(self) -> ExperimentResult:
         c = self.config
-        result = ExperimentResult(c, self.structure)
+        xy = self.start_positions()
+        result = ExperimentResult(c, self.structure, robot_starts={
+            robot: (xy[2 * k], xy[2 * k + 1]) for k, robot in enumerate(c.robot_names)})
         counts = removals_per_trial(c.removals, c.trials, c.seed)
         misplaced = removals_per_trial(c.misplacements, c.trials, c.seed + 1)
         wrong = removals_per_trial(c.wrong_tiles, c.trials, c.seed + 2)

@@ -159,7 +159,7 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
     if baseline:
         lines.append(f"Makespan without faults: {baseline[0]:.0f} s simulated")
         trial0 = next(r for r in result.records if r.trial == 0)
-        lines += account_lines(robot_accounts(trial0, result.structure, result.time_model()),
+        lines += account_lines(robot_accounts(trial0, result.structure, result.time_model(), result.robot_starts),
                                None if first is None else first.makespan, baseline[0])
     if faulty:
         lines.append(
@@ -422,7 +422,8 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "wrong_landings_asked": record.wrong_landings_planned,
             "misplacements": [o.as_dict() for o in misplacement_outcomes(record)],
             "false_repairs": len(false_repairs(record)),
-            "robot_accounts": [a.as_dict() for a in robot_accounts(record, result.structure, result.time_model())],
+            "robot_accounts": [a.as_dict() for a in robot_accounts(record, result.structure, result.time_model(),
+                                                                    result.robot_starts)],
             "decisions": record.decisions,
         })
     first = first_plan(result)
