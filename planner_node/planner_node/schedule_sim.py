@@ -86,11 +86,8 @@ def simulate_orders(graph: AssemblyGraph, orders: Sequence[Sequence[int]]) -> Si
     supports = graph.support_lists
     dependents = graph.dependent_lists
     nan = float("nan")
-    start = [nan] * n
-    arrive = [nan] * n
-    place_start = [nan] * n
-    place_end = [nan] * n
-    finish = [nan] * n
+    start, arrive, place_start = [nan] * n, [nan] * n, [nan] * n
+    place_end, finish = [nan] * n, [nan] * n
     unplaced_supports = [len(s) for s in supports]
     waiting_robot: dict[int, int] = {}  # tile index -> robot blocked with it at the head
 
