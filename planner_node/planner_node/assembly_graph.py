@@ -11,7 +11,6 @@ The planner works on array indices 0..n-1 (tiles in increasing id order); `tile_
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from itertools import chain, pairwise
@@ -185,11 +184,9 @@ def _layers(support_lists: tuple[tuple[int, ...], ...], dependent_lists: tuple[t
     return layer
 
 
-def build_graph(
-    structure: Structure, time_model: TimeModel, robot_starts: Sequence[tuple[float, float]] = ()
-) -> AssemblyGraph:
-    """The assembly graph of `structure` with tile costs under `time_model`; with `robot_starts`
-    (x, y per robot, m), the trip of each robot to its first tile's cache too."""
+def build_graph(structure: Structure, time_model: TimeModel) -> AssemblyGraph:
+    """The assembly graph of `structure` with tile costs under `time_model`, for robots starting at
+    their caches (`replace` its `first_trip` with `TimeModel.start_trips` for robots elsewhere)."""
     ids = list(structure.tiles)
     n = len(ids)
     index = {t: k for k, t in enumerate(ids)}
@@ -233,5 +230,5 @@ def build_graph(
         layer=np.array(_layers(support_lists, dependent_lists), dtype=np.int64),
         component=component,
         n_components=int(n_components),
-        first_trip=time_model.start_trips(structure, robot_starts) if len(robot_starts) else np.zeros((0, n)),
+        first_trip=np.zeros((0, n)),
     )

@@ -289,7 +289,7 @@ def test_robots_standing_away_from_their_caches_drive_there_first() -> None:
     """robot1 stands 1 m beyond the block cache (0, -1), robot2 on the beam cache (0.05, 1): robot1
     drives 1 m at 0.5 m/s before it picks, robot2 starts at once."""
     structure = arch()
-    graph = build_graph(structure, TIMES, [(0.0, -2.0), (0.05, 1.0)])
+    graph = replace(build_graph(structure, TIMES), first_trip=TIMES.start_trips(structure, [(0.0, -2.0), (0.05, 1.0)]))
     to_blocks, to_beam = [2.0, math.hypot(0.05, 3.0) / 0.5], [math.hypot(0.05, 2.0) / 0.5, 0.0]
     expected = [[to_blocks[0], to_blocks[0], to_blocks[1]], [to_beam[0], to_beam[0], to_beam[1]]]
     np.testing.assert_allclose(graph.first_trip, expected)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -38,7 +39,8 @@ def _corners(structure: Structure) -> list[tuple[float, float]]:
 
 GRAPHS = [build_graph(s, TimeModel()) for s in _structures()]
 # the same, with the robots starting away from their caches
-STARTED_GRAPHS = [build_graph(s, TimeModel(), _corners(s)) for s in _structures()]
+STARTED_GRAPHS = [replace(build_graph(s, TimeModel()), first_trip=TimeModel().start_trips(s, _corners(s)))
+                  for s in _structures()]
 
 
 def _point_sets() -> list[np.ndarray]:
