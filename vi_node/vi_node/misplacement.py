@@ -93,7 +93,9 @@ class PlacementContext:
     there (`solid`) is not believed, tiles do not interpenetrate. `disturbed`: only tiles whose
     pixels do not all agree with the model are refitted at all; `suspects` (tile indices) are
     refitted even when the first linearised step says little. `surfaces` answers the closest-point
-    queries of the refits.
+    queries of the refits. `by_robots`: the points inside another robot's box grown by its
+    localization error; they prove nothing stands at a tile's place (a Kinect pixel straddling a
+    tile's edge and the face of a robot parked 4 cm behind it lands between the two).
     """
 
     patches: PlanarPatches
@@ -103,6 +105,7 @@ class PlacementContext:
     solid: Sequence[bool]
     disturbed: Sequence[bool]
     suspects: Sequence[int] = ()
+    by_robots: NDArray[np.bool_] | None = None
 
 
 def confirmed_by_pixels(
@@ -152,24 +155,25 @@ def assess(scan: ScanPoints, context: PlacementContext, settings: MisplacementSe
     for index in present[np.argsort(-first.rms[present], kind="stable")]:
         fit = _judge_tile(int(index), scan, owners, first, claimed, context, settings)
         fits[int(index)] = fit
-    out = _sticking_out(scan, owners, context.patches, claimed, settings)
+    explained = claimed if context.by_robots is None else claimed | context.by_robots
+    out = _sticking_out(scan, owners, context.patches, explained, settings)
     return {index: replace(fit, sticking_out=int(out[index])) for index, fit in fits.items()}
 
 
 def _sticking_out(
-    scan: ScanPoints, owners: _Owners, patches: PlanarPatches, claimed: NDArray[np.bool_],
+    scan: ScanPoints, owners: _Owners, patches: PlanarPatches, explained: NDArray[np.bool_],
     settings: MisplacementSettings,
 ) -> NDArray[np.int64]:
     """Per tile: its points clear of its faces at its own height (a point above a tile's top is
     something resting on it, not part of it), and those reaching over its neighbours beside it,
-    which no refit explained."""
+    which nothing `explained` (a refit of a tile found moved, or a robot standing there)."""
     owner = owners.owner
     tile = np.minimum(owner, len(patches) - 1)
     z = scan.points[:, 2]
     level = (z >= patches.tile_low[tile, 2] - 0.005) & (z <= patches.tile_high[tile, 2] + 0.005)
-    out = (owners.distance > settings.sticking_out) & level & ~claimed
+    out = (owners.distance > settings.sticking_out) & level & ~explained
     own = np.bincount(owner[out], minlength=len(patches) + 1)[:-1]
-    return own + _reaching_over(scan, patches, claimed, settings)
+    return own + _reaching_over(scan, patches, explained, settings)
 
 
 def _reaching_over(

@@ -707,6 +707,8 @@ class InspectionPipeline:
                 solid=[t.state != TileState.MISSING for t in result.tiles],
                 disturbed=[t.see_through + t.in_front >= 1 for t in result.tiles],
                 suspects=(*suspects, *self._disturbed_tiles(result)),
+                by_robots=None if scan.robots is None else inside_robots(
+                    points.points, scan.robots.robots, self.robot_settings),
             ),
             self.misplacement_settings,
         )
