@@ -56,6 +56,8 @@ class MisplacementSettings:
     fitted_pixels: int = 30  # ... pose, of at least this many decisive pixels (`pose_hypotheses`)
     disturbed_share: float = 0.08  # refit whatever the first step says when this share of its decisive pixels
     disturbed_pixels: int = 15  # ... and at least this many disagree with its planned pose
+    rival_share: float = 0.75  # another type lies there when it explains this share of the pixels where
+    rival_pixels: int = 20  # ... the two types differ, and at least this many (`type_hypotheses`)
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,9 @@ then the classification of the mode chosen at start-up:
   no robot mask, ICP on every candidate.
 - `default`: `evidence` judges every pixel between "the tile is there" and "the tile is gone"
   (the virtual scan, what lies behind each tile, and where the camera would return at all:
-  `expected_returns`), and `misplacement` refits tiles whose points sit off their faces; a tile
-  found misplaced is judged once more after an alignment that leaves it out. ICP runs on a
+  `expected_returns`), `misplacement` refits tiles whose points sit off their faces, and
+  `type_hypotheses` weighs a tile whose pixels disagree against the other types of its height in
+  its place; a tile found misplaced is judged once more after an alignment that leaves it out. ICP runs on a
   subsample of the candidates against Open3D's BVH instead of the patch hierarchy.
 
 Every stage is timed. A scan that cannot be aligned gives no tile states at all, never wrong ones.
@@ -60,6 +61,7 @@ from vi_node.raycast import VirtualScan, VirtualScene
 from vi_node.rival_fits import agreed, distinct
 from vi_node.robot_mask import RobotBoxes, inside_robots, near_robot_points, tall_things
 from vi_node.scan_result import ScanResult, TileResult
+from vi_node.type_hypotheses import rival_tiles, tiles_box, type_votes
 from vi_node.view_agreement import DepthView, view_agreement
 
 Array = NDArray[np.float64]
@@ -169,6 +171,7 @@ class InspectionPipeline:
         self.evidence_settings = settings.evidence()
         self.misplacement_settings = settings.misplacement()
         self.robot_settings = settings.robot_mask()
+        self.tile_shapes = {name: kind.shape for name, kind in structure.tile_types.items()}
         self.structure_top = float(structure.bounds[1][2])
         self._models: dict[tuple[int, ...], ExpectedModel] = {}
         self.in_hand: frozenset[int] = frozenset()
@@ -736,6 +739,11 @@ class InspectionPipeline:
             elif tile.state is TileState.PRESENT and fit.misplaced:
                 # its points moved, its pixels cannot tell: no verdict rather than "present and in place"
                 tile.state = TileState.OCCLUDED
+        for index in self._disturbed_tiles(result, blank=True):
+            tile = result.tiles[index]
+            if tile.state is not TileState.MISPLACED and self._another_type_explains(scan, pose, index):
+                tile.state, tile.offset = TileState.MISPLACED, (0.0, 0.0, 0.0)
+                result.misplacement[tile.tile_id] = (True, tile.offset, tile.residual)
 
     def _fitted_pose_explains(self, scan: _Scan, pose: Array, index: int, offset: tuple[float, float, float],
                               planned_agree: int) -> bool:
@@ -750,16 +758,32 @@ class InspectionPipeline:
         return fitted_pose_explains(planned_agree, fitted, settings.fitted_share, settings.fitted_gain,
                                     settings.fitted_pixels)
 
-    def _disturbed_tiles(self, result: ScanResult) -> list[int]:
+    def _disturbed_tiles(self, result: ScanResult, blank: bool = False) -> list[int]:
         """Tiles (indices) whose pixels disagree with their planned pose on a good share: refitted
         whatever the first linearised step says, which underestimates a turn of 15 degrees or more
-        (a block of pyramid_91 turned 30 degrees stepped 3)."""
+        (a block of pyramid_91 turned 30 degrees stepped 3). `blank`: blanks against it disagree too."""
         settings = self.misplacement_settings
-        return [
-            k for k, t in enumerate(result.tiles)
-            if t.see_through + t.in_front >= max(settings.disturbed_pixels,
-                                                 settings.disturbed_share * (t.physical + t.see_through + t.in_front))
-        ]
+        disturbed = []
+        for k, t in enumerate(result.tiles):
+            against = t.see_through + t.in_front + (t.blank if blank else 0)
+            if against >= max(settings.disturbed_pixels, settings.disturbed_share * (t.physical + against)):
+                disturbed.append(k)
+        return disturbed
+
+    def _another_type_explains(self, scan: _Scan, pose: Array, index: int) -> bool:
+        """Whether a tile of another type at the tile's planned pose explains its pixels clearly better
+        than the planned type (`type_hypotheses`): a robot took a tile from the wrong cache."""
+        settings, model = self.misplacement_settings, self.model
+        masked = _either(scan.masked, scan.unjudged)
+        for rival in rival_tiles(model.tiles[index], self.tile_shapes):
+            low, high = tiles_box([model.tiles[index], rival])
+            window = scan.camera.box_roi(pose, low, high)
+            image = DepthImage(scan.cloud, scan.camera, pose, window, None if masked is None else masked[window])
+            votes = type_votes(model.scene, index, rival, image, self.evidence_settings,
+                               (self.settings.min_range, self.settings.max_range))
+            if votes.rival_explains(settings.rival_share, settings.rival_pixels):
+                return True
+        return False
 
     def _judge_again_without_moved_tiles(self, scan: _Scan, level: Array, first: ScanResult) -> ScanResult:
         """A misplaced tile pulls the alignment towards where it lies: search and align once more,
