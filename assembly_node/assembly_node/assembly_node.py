@@ -75,6 +75,9 @@ class AssemblySettings:
     base_clearance: float = setting(_TIMES.base_clearance, "Time model: m a base keeps from every tile.")
     cache_crowding: float = setting(
         _TIMES.cache_crowding, "Time model: s a pick costs for every robot of the plan beyond one per cache in use.")
+    stop_crowding: float = setting(
+        _TIMES.stop_crowding, "Time model: s a pick costs for every other robot of the plan times the share of the "
+        "structure's stops a base at one overlaps (the larger of this and the caches' crowding counts).")
     weight_supported: float = setting(30.0, "A in b = w - A*c + B*d: s per own tile the missing one supports.")
     weight_distance: float = setting(10.0, "B in b = w - A*c + B*d: s per metre from own cache to the tile.")
     bid_in_auctions: bool = setting(True, "Take part in auctions; false: never bid (the robot keeps its own task).")
@@ -101,7 +104,7 @@ class AssemblyNode(Node):
             pick_time=settings.pick_time, place_time=settings.place_time, travel_speed=settings.travel_speed,
             cache_standoff=settings.cache_standoff, approach_distance=settings.approach_distance,
             base_size=tuple(settings.base_size), base_clearance=settings.base_clearance,
-            cache_crowding=settings.cache_crowding,
+            cache_crowding=settings.cache_crowding, stop_crowding=settings.stop_crowding,
         )
         self.team_size = 1  # robots of the latest plan: they crowd the caches (TimeModel.for_team)
         self.weight_supported = float(settings.weight_supported)

@@ -61,6 +61,10 @@ class PlannerParameters:
     cache_crowding: float = setting(
         _DEFAULT_TIMES.cache_crowding, "Time a pick costs for every robot beyond one per parts cache in use, "
         "as robots crowding a cache drive round it (s)")
+    stop_crowding: float = setting(
+        _DEFAULT_TIMES.stop_crowding, "Time a pick costs for every other robot times the share of the structure's "
+        "stops a base at one of them overlaps, as robots meet beside the structure; the larger of this and the "
+        "caches' crowding is charged (s)")
     approach_distance: float = setting(
         _DEFAULT_TIMES.approach_distance, "How far from a tile's centre a robot base stops to place it, its arm's "
         "reach; further out where the base would stand on the structure (m)")
@@ -99,6 +103,7 @@ class PlannerParameters:
             cache_standoff=self.cache_standoff,
             type_place_time=dict(self.type_place_time),
             cache_crowding=self.cache_crowding,
+            stop_crowding=self.stop_crowding,
             approach_distance=self.approach_distance,
             base_size=self.base_size,
             base_clearance=self.base_clearance,
@@ -139,6 +144,7 @@ _FIELDS = {
     "travel_speed": float,
     "cache_standoff": float,
     "cache_crowding": float,
+    "stop_crowding": float,
     "approach_distance": float,
     "base_size": tuple,
     "base_clearance": float,

@@ -86,7 +86,7 @@ def test_parameter_file_sets_the_time_model(tmp_path: Path) -> None:
     assert "unknown parameter 'colour'" in result.stderr
     fast = json.loads(result.stdout)
     structure = load_structure(PAPER)
-    expected = TimeModel(travel_speed=0.6, type_place_time={"triangle": 30.0})
+    expected = TimeModel(travel_speed=0.6, type_place_time={"triangle": 30.0}).for_team(structure, 2)
     total = sum(expected.tile_cost(structure, t) for t in structure.tiles)
     bound = makespan_lower_bound(build_graph(structure, expected), 2)
     assert fast["lower_bound"] == pytest.approx(bound.value, abs=1e-3)

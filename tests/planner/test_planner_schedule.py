@@ -148,7 +148,7 @@ def test_robots_beyond_one_per_cache_make_every_pick_dearer() -> None:
     4 robots are one too many at each, 3 half a robot; paper_14's 5 caches take 2 robots freely."""
     pyramid_91 = load_structure(STRUCTURES / "pyramid_91.yaml")
     paper = load_structure(STRUCTURES / "paper_14.yaml")
-    model = TimeModel(cache_crowding=4.0)
+    model = TimeModel(cache_crowding=4.0, stop_crowding=0.0)
     assert model.for_team(pyramid_91, 2).crowding_time == 0.0
     assert model.for_team(pyramid_91, 3).crowding_time == pytest.approx(2.0)
     assert model.for_team(pyramid_91, 4).crowding_time == pytest.approx(4.0)
@@ -162,6 +162,26 @@ def test_robots_beyond_one_per_cache_make_every_pick_dearer() -> None:
     assert graph.cost[0] == pytest.approx(crowded.tile_cost(pyramid_91, int(graph.tile_ids[0])))
     with pytest.raises(ValueError, match="cache_crowding"):
         TimeModel(cache_crowding=-1.0)
+
+
+def test_robots_meeting_beside_a_small_structure_make_every_pick_dearer() -> None:
+    """The other measured interference cost: beside paper_14 (30 cm, smaller than two bases) a base
+    at one stop overlaps 44% of the others; with caches to spare it is what the team pays. The
+    larger of the two crowdings counts, and one robot pays neither."""
+    paper = load_structure(STRUCTURES / "paper_14.yaml")
+    pyramid_91 = load_structure(STRUCTURES / "pyramid_91.yaml")
+    arcade = load_structure(STRUCTURES / "arcade_294.yaml")
+    model = TimeModel(cache_crowding=3.5, stop_crowding=4.5)
+    assert model.stop_share(paper) == pytest.approx(0.44, abs=0.01)
+    assert model.stop_share(arcade) < 0.1 < model.stop_share(pyramid_91) < model.stop_share(paper)
+    assert model.for_team(paper, 1).crowding_time == 0.0
+    assert model.for_team(paper, 2).crowding_time == pytest.approx(4.5 * model.stop_share(paper))
+    assert model.for_team(paper, 3).crowding_time == pytest.approx(2 * 4.5 * model.stop_share(paper))
+    assert model.for_team(arcade, 8).crowding_time == pytest.approx(3.5 * 3)  # 8 robots on 2 caches
+    wide = TimeModel(base_size=(0.6, 0.6))
+    assert wide.stop_share(paper) > model.stop_share(paper)
+    with pytest.raises(ValueError, match="stop_crowding"):
+        TimeModel(stop_crowding=-1.0)
 
 
 def test_seeds_are_spread_along_the_exterior_of_a_pyramid() -> None:

@@ -15,13 +15,21 @@ the remaining workload) use them. Where the robots stand at the start is not the
 robots start at their caches): when it is known, `start_trips` is each robot's drive to the cache
 of its first tile, which the schedule simulation adds before that tile.
 
-Robots working close to each other cost time too, and most where they meet most: at the parts
-caches, which every robot visits for every tile. A robot that finds the stop beside a cache taken
-drives round to another side of it (or waits). That is charged as a measured interference cost:
-`cache_crowding` seconds per pick for every robot beyond one per parts cache in use (`for_team`).
-Measured in the simulated team on pyramid_91 (4 robots, 2 caches: 69 of 91 placements found a stop
-taken, 3.5 s per placement on average beyond the same drives alone); paper_14 (2 robots, 5 caches)
-lost 0.1 s per placement, and is charged nothing.
+Robots working close to each other cost time too: a robot that finds the stop it needs taken by
+another robot drives round to another side (or waits). That is charged as a measured interference
+cost, a time every pick costs this team on this structure (`for_team`), the larger of two:
+- at the parts caches, which every robot visits for every tile: `cache_crowding` seconds for every
+  robot beyond one per parts cache in use. Measured in the simulated team on pyramid_91 (4 robots,
+  2 caches: 69 of 91 placements found a stop taken, 3.5 s per placement on average beyond the same
+  drives alone);
+- beside the structure: `stop_crowding` seconds for every other robot, times the share of the
+  structure's stops that a base standing at one of them overlaps (`stop_share`). On a structure
+  smaller than two bases every robot at it stands in another's way: paper_14 (2 robots, 5 caches, a
+  base at one stop overlaps 44% of the others) lost 2.05 s per placement (27.0, 30.9 and 28.8 s over
+  its 14 placements in three runs): 4.7 s per other robot and share; pyramid_91 (4 robots, 29%)
+  lost 3.4-4.1 s: 3.9-4.7 s.
+A robot held up at a crowded cache reaches the structure out of step with the others, and robots
+with caches to spare meet at the structure, so the two are not added.
 """
 
 from __future__ import annotations
@@ -47,6 +55,7 @@ class TimeModel:
     cache_standoff: float = 0.25  # m, the base stops this far short of the cache (the arm's reach)
     type_place_time: Mapping[str, float] = field(default_factory=dict)  # s, per-type override
     cache_crowding: float = 3.5  # s per pick for every robot beyond one per parts cache (`for_team`)
+    stop_crowding: float = 4.5  # s per pick for every other robot, times `stop_share` (`for_team`)
     crowding_time: float = 0.0  # s every pick costs this team on this structure (set by `for_team`)
     approach_distance: float = 0.25  # m from a tile's centre to where the base stops to place it (the arm's reach)
     base_size: tuple[float, float] = (0.33, 0.33)  # m, x and y size of a base's footprint, which stands off the tiles
@@ -54,7 +63,8 @@ class TimeModel:
 
     def __post_init__(self) -> None:
         for name, value in (("pick_time", self.pick_time), ("place_time", self.place_time),
-                            ("cache_crowding", self.cache_crowding), ("crowding_time", self.crowding_time)):
+                            ("cache_crowding", self.cache_crowding), ("stop_crowding", self.stop_crowding),
+                            ("crowding_time", self.crowding_time)):
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a non-negative number of seconds, got {value}")
         if not (math.isfinite(self.travel_speed) and self.travel_speed > 0):
@@ -82,11 +92,18 @@ class TimeModel:
         return self.pick_duration() + self.place_duration(type_name)
 
     def for_team(self, structure: Structure, robots: int) -> TimeModel:
-        """This model for `robots` robots building `structure`: every pick costs `cache_crowding` s
-        for each robot beyond one per parts cache the structure's tiles use (none without caches)."""
+        """This model for `robots` robots building `structure`: every pick costs the larger of
+        `cache_crowding` s for each robot beyond one per parts cache the structure's tiles use (none
+        without caches) and `stop_crowding` s for each other robot times `stop_share`."""
         caches = {structure.caches[t.type_name] for t in structure.tiles.values() if t.type_name in structure.caches}
         crowd = max(robots / len(caches) - 1.0, 0.0) if caches else 0.0
-        return replace(self, crowding_time=self.cache_crowding * crowd)
+        at_structure = self.stop_crowding * max(robots - 1, 0) * self.stop_share(structure) if robots > 1 else 0.0
+        return replace(self, crowding_time=max(self.cache_crowding * crowd, at_structure))
+
+    def stop_share(self, structure: Structure) -> float:
+        """The share of the other tiles' stops beside the structure that a base standing at a tile's
+        stop overlaps, on average over the tiles (over 512 of them, evenly spread, on big structures)."""
+        return _stop_share(structure.site, self.base())
 
     def cache_distance(self, structure: Structure, tile_id: int) -> float:
         """Floor distance from the tile's type cache to the tile's centre (m); 0 without a cache."""
@@ -135,17 +152,40 @@ class TimeModel:
 
 
 @lru_cache(maxsize=8)
+def _stops(structure: Structure, base: BaseGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per tile (id order): where the base stops beside it coming from its cache, that cache (the
+    tile's centre without one) and whether it has one."""
+    ids = list(structure.tiles)
+    centres = np.array([structure.tiles[t].centroid[:2] for t in ids], dtype=float).reshape(-1, 2)
+    caches = [structure.caches.get(structure.tiles[t].type_name) for t in ids]
+    has_cache = np.array([c is not None for c in caches], dtype=bool)
+    towards = np.array([c if c is not None else centres[k] for k, c in enumerate(caches)], dtype=float)
+    return approach_stops(structure, towards.reshape(-1, 2), base), towards.reshape(-1, 2), has_cache
+
+
+@lru_cache(maxsize=8)
+def _stop_share(structure: Structure, base: BaseGeometry) -> float:
+    stops = _stops(structure, base)[0]
+    count = len(stops)
+    if count < 2:
+        return 0.0
+    probes = stops[:: max(1, count // 512)]
+    reach = np.asarray(base.base_size) + base.clearance
+    overlaps = [  # 64 probes at a time: 10,000 stops stay a few MB
+        np.count_nonzero(np.all(np.abs(block[:, None, :] - stops[None, :, :]) < reach, axis=-1)) - len(block)
+        for block in np.array_split(probes, max(1, len(probes) // 64))
+    ]
+    return float(sum(overlaps) / (len(probes) * (count - 1)))
+
+
+@lru_cache(maxsize=8)
 def _trips(
     structure: Structure, base: BaseGeometry, standoff: float, speed: float
 ) -> tuple[dict[int, float], dict[int, float]]:
     """Per tile id: seconds to the tile from its cache, and back to the caches in use (0 without a
     cache). Worked out once for all the structure's tiles: the stops need the whole footprint."""
     ids = list(structure.tiles)
-    centres = np.array([structure.tiles[t].centroid[:2] for t in ids], dtype=float).reshape(-1, 2)
-    caches = [structure.caches.get(structure.tiles[t].type_name) for t in ids]
-    has_cache = np.array([c is not None for c in caches], dtype=bool)
-    towards = np.array([c if c is not None else centres[k] for k, c in enumerate(caches)], dtype=float)
-    stops = approach_stops(structure, towards.reshape(-1, 2), base)
+    stops, towards, has_cache = _stops(structure, base)
     used, counts = np.unique(towards[has_cache], axis=0, return_counts=True)
     share = counts / max(int(counts.sum()), 1)
 
