@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from vi_helpers import structure
+from vi_helpers import states_from, structure
 
 from tiling_assembly.contacts import separation
 from tiling_assembly.geometry import PlacedTile, prism_shape, turn_symmetry
@@ -151,18 +151,8 @@ def test_a_long_rectangle_where_a_square_was_planned_is_flagged_by_what_reaches_
     swapped = PlacedTile(10, "long_rectangle", paper.tile_types["long_rectangle"].shape, square.rotation,
                          square.position)
     scene = Scene(paper, tuple(paper.tile_ids), (), {10: swapped})
-    pipeline = InspectionPipeline(paper, None, InspectionSettings())
-    simulator = KinectSimulator(seed=12)
-    rng = np.random.default_rng(11)
-    flagged_views = 0
-    for bearing in (60.0, 90.0, 120.0):
-        view = view_from(scene.centre, math.radians(bearing), 1.0, rng)
-        result = pipeline.inspect(simulator.scan(scene.kinect_scene, view.camera), OverheadPose(*view.overhead))
-        assert result.ok, result.reason
-        states = result.by_id()
-        flagged_views += states[10].state == TileState.MISPLACED
-        assert [t for t, s in states.items() if s.state == TileState.MISPLACED and t != 10] == []
-    assert flagged_views >= 2
+    states = states_from(scene, 10, (60.0, 90.0, 120.0), seeds=(12, 11))
+    assert states.count(TileState.MISPLACED) >= 2
 
 
 def test_something_else_there_needs_a_good_share_of_points_standing_clear_of_the_tile() -> None:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from vi_helpers import structure
+from vi_helpers import states_from, structure
 
 from tiling_assembly.geometry import PlacedTile
 from tiling_sim.inspection_scenarios import Scene, view_from
@@ -14,11 +14,8 @@ from tiling_sim.kinect import KinectSimulator
 from vi_node.camera_model import PinholeCamera
 from vi_node.classify import TileState
 from vi_node.evidence import EvidenceSettings
-from vi_node.inspection_settings import InspectionSettings
 from vi_node.misplacement import MisplacementSettings
-from vi_node.pipeline import InspectionPipeline
 from vi_node.pose_hypotheses import DepthImage
-from vi_node.pose_prior import OverheadPose
 from vi_node.raycast import VirtualScene
 from vi_node.type_hypotheses import TypeVotes, rival_tiles, tiles_box, type_votes
 
@@ -125,17 +122,7 @@ def test_the_pipeline_flags_a_triangle_where_a_square_was_planned_and_nothing_el
     views: neither a refit nor 'something of another shape' (a third of its pixels seeing through)
     caught it."""
     paper = structure()
-    scene = Scene(paper, tuple(paper.tile_ids), (), {10: _swapped(10, "triangle")})
-    pipeline = InspectionPipeline(paper, None, InspectionSettings())
-    simulator = KinectSimulator(seed=21)
-    rng = np.random.default_rng(22)
-    flagged = 0
-    for bearing in (45.0, 90.0, 135.0):
-        view = view_from(scene.centre, math.radians(bearing), 1.0, rng)
-        result = pipeline.inspect(simulator.scan(scene.kinect_scene, view.camera), OverheadPose(*view.overhead))
-        assert result.ok, result.reason
-        states = result.by_id()
-        assert states[10].state != TileState.PRESENT
-        flagged += states[10].state == TileState.MISPLACED
-        assert [t for t, s in states.items() if s.state == TileState.MISPLACED and t != 10] == []
-    assert flagged >= 2
+    states = states_from(Scene(paper, tuple(paper.tile_ids), (), {10: _swapped(10, "triangle")}), 10,
+                         (45.0, 90.0, 135.0), seeds=(21, 22))
+    assert TileState.PRESENT not in states
+    assert states.count(TileState.MISPLACED) >= 2

@@ -12,6 +12,12 @@ from conftest import ros2_command
 
 from tiling_assembly.structure import Structure
 from tiling_assembly.structure_file import load_structure
+from tiling_sim.inspection_scenarios import Scene, view_from
+from tiling_sim.kinect import KinectSimulator
+from vi_node.classify import TileState
+from vi_node.inspection_settings import InspectionSettings
+from vi_node.pipeline import InspectionPipeline
+from vi_node.pose_prior import OverheadPose
 
 REPO = Path(__file__).resolve().parents[2]
 STRUCTURES = REPO / "config" / "structures"
@@ -39,3 +45,22 @@ def overhead_with_error(
 
 def rng(seed: int) -> np.random.Generator:
     return np.random.default_rng(seed)
+
+
+def states_from(scene: Scene, tile_id: int, bearings: tuple[float, ...], seeds: tuple[int, int]) -> list[TileState]:
+    """The states of `tile_id` in simulated scans of `scene` from `bearings` (degrees, 1 m away;
+    `seeds`: of the Kinect's noise and of the views' errors), asserting that every scan aligns and
+    flags no other tile misplaced."""
+    pipeline = InspectionPipeline(scene.structure, None, InspectionSettings())
+    simulator = KinectSimulator(seed=seeds[0])
+    rng = np.random.default_rng(seeds[1])
+    states = []
+    for bearing in bearings:
+        view = view_from(scene.centre, math.radians(bearing), 1.0, rng)
+        result = pipeline.inspect(simulator.scan(scene.kinect_scene, view.camera),
+                                  OverheadPose(*view.overhead))
+        assert result.ok, result.reason
+        by_id = result.by_id()
+        assert [t for t, s in by_id.items() if s.state == TileState.MISPLACED and t != tile_id] == []
+        states.append(by_id[tile_id].state)
+    return states
