@@ -188,8 +188,9 @@ def test_a_repeated_announcement_gets_the_same_bid_again() -> None:
 
 
 def test_the_workload_in_a_bid_counts_the_plans_robots_crowding_the_caches() -> None:
-    """Eight robots on paper_14's five caches: every pick costs (8 / 5 - 1) x 3.5 s more, as in the
-    plan (TimeModel.for_team); the robot's w_i says so."""
+    """Eight robots on paper_14: every pick costs the larger of (8 / 5 - 1) x 3.5 s at its five caches
+    and 7 x 4.5 s x the share of its stops a base blocks beside it (44%), as in the plan
+    (TimeModel.for_team); the robot's w_i says so."""
     structure = load_structure(REPO / "config" / "structures" / "paper_14.yaml")
     waiting = 4  # the octagon on 1, 2, 3 and 6, none of them placed: robot1 keeps it in its task
     robot = RobotUnderTest()
@@ -203,6 +204,7 @@ def test_the_workload_in_a_bid_counts_the_plans_robots_crowding_the_caches() -> 
     finally:
         robot.close()
     crowded = TimeModel().for_team(structure, 8)
-    assert crowded.crowding_time == pytest.approx(0.6 * 3.5)
+    assert crowded.crowding_time == pytest.approx(max(0.6 * 3.5, 7 * 4.5 * TimeModel().stop_share(structure)))
+    assert crowded.crowding_time > 10.0
     assert robot.bids[0].workload == pytest.approx(crowded.tile_cost(structure, waiting))
     assert robot.goals == []
