@@ -166,11 +166,24 @@ def test_something_else_there_needs_a_good_share_of_points_standing_clear_of_the
 
 def test_tiles_moved_by_one_shift_or_one_turn_are_moved_as_one() -> None:
     settings = MisplacementSettings()
-    assert moved_as_one([(0.02, 0.005, 0.0), (0.021, 0.006, 0.36)], settings)  # a common shift, one also turned
-    assert moved_as_one([(0.0, 0.0, 0.05), (0.004, 0.0, 0.08)], settings)  # a common small turn
-    assert not moved_as_one([(0.0, 0.0, -0.53), (0.0, 0.0, 0.4)], settings)  # turns of opposite sign
-    assert not moved_as_one([(-0.008, 0.019, 0.0), (-0.027, -0.025, 0.0)], settings)  # shifts their own ways
-    assert not moved_as_one([(0.03, 0.0, 0.0), (0.0, 0.0, 0.4)], settings)  # one shifted, one turned in place
+    near = [(0.0, 0.0), (0.05, 0.0)]
+    assert moved_as_one([(0.02, 0.005, 0.0), (0.021, 0.006, 0.36)], near, settings)  # a common shift, one turned
+    assert moved_as_one([(0.0, 0.0, 0.05), (0.004, 0.0, 0.08)], near, settings)  # a common small turn
+    assert not moved_as_one([(0.0, 0.0, -0.53), (0.0, 0.0, 0.4)], near, settings)  # turns of opposite sign
+    assert not moved_as_one([(-0.008, 0.019, 0.0), (-0.027, -0.025, 0.0)], near, settings)  # shifts their own ways
+    assert not moved_as_one([(0.03, 0.0, 0.0), (0.0, 0.0, 0.4)], near, settings)  # one shifted, one turned in place
+
+
+def test_one_turn_of_the_map_swings_tiles_apart_and_tiles_turned_alike_in_place_did_not_move_as_one() -> None:
+    """Turned 30 degrees about the origin, a map moves a tile at (0.1, 0) by (R - I) c; two wedges
+    each turned 30 degrees about their own centroids, 10 cm apart, with no shift, are two slips."""
+    settings = MisplacementSettings()
+    turn = math.radians(30.0)
+    centroids = [(0.0, 0.0), (0.1, 0.0)]
+    swung = (0.1 * (math.cos(turn) - 1.0), 0.1 * math.sin(turn), turn)
+    assert moved_as_one([(0.0, 0.0, turn), swung], centroids, settings)
+    assert not moved_as_one([(0.0, 0.0, turn), (0.0, 0.0, turn)], centroids, settings)
+    assert not moved_as_one([(0.0, 0.0, 0.0), (0.0, 0.0, 0.0)], centroids, settings)  # two tiles of another type
 
 
 @pytest.mark.parametrize("seed, bearing", [(1, 0.0), (3, 0.0), (3, 180.0)])
@@ -185,6 +198,22 @@ def test_two_tiles_misplaced_their_own_ways_are_both_flagged(seed: int, bearing:
     scene = Scene(gate, tuple(gate.tile_ids), (), {6: shifted, 7: turned})
     view = view_from(scene.centre, math.radians(bearing), 1.0, np.random.default_rng(seed))
     cloud = KinectSimulator(seed=seed).scan(scene.kinect_scene, view.camera)
+    result = InspectionPipeline(gate, None, InspectionSettings()).inspect(cloud, OverheadPose(*view.overhead))
+    assert result.ok, result.reason
+    assert sorted(t.tile_id for t in result.tiles if t.state == TileState.MISPLACED) == [6, 7]
+
+
+@pytest.mark.parametrize("bearing", [0.0, 200.0])
+def test_two_tiles_turned_alike_far_apart_are_both_flagged(bearing: float) -> None:
+    """Wedges 6 and 7 of gate_9, 24 cm apart, each turned 30 degrees about its own centroid. One turn
+    of the map would have swung them 12 cm apart: these are two misplaced tiles, not a misaligned
+    scan (the rule that took equal turns for one motion failed every such scan of the independent
+    scenes)."""
+    gate = structure("gate_9")
+    turned = {t: moved_tile(gate.tiles[t], (0.0, 0.0, math.radians(30.0))) for t in (6, 7)}
+    scene = Scene(gate, tuple(gate.tile_ids), (), turned)
+    view = view_from(scene.centre, math.radians(bearing), 1.0, np.random.default_rng(5))
+    cloud = KinectSimulator(seed=5).scan(scene.kinect_scene, view.camera)
     result = InspectionPipeline(gate, None, InspectionSettings()).inspect(cloud, OverheadPose(*view.overhead))
     assert result.ok, result.reason
     assert sorted(t.tile_id for t in result.tiles if t.state == TileState.MISPLACED) == [6, 7]

@@ -344,18 +344,38 @@ def _judge_tile(
     )
 
 
-def moved_as_one(offsets: Sequence[tuple[float, float, float]], settings: MisplacementSettings) -> bool:
+def moved_as_one(
+    offsets: Sequence[tuple[float, float, float]], centroids: Sequence[Sequence[float]], settings: MisplacementSettings
+) -> bool:
     """Whether the motions found for several tiles look like one motion of them all, which is what a
     misaligned scan makes the tiles look like: the same shift of 1.5 cm or more (turns aside: a
-    turned tile's refit takes the common shift too), or, with no such shift, the same turn. Tiles that
-    slipped when placed each move their own way. `offsets`: (x, y, yaw) per tile."""
+    turned tile's refit takes the common shift too), or one rigid turn of the map. Turned by theta
+    about some point and shifted, the map moves a tile whose centroid is c by (R(theta) - I) c + t:
+    the turns agree and the shifts, less what that turn swings each centroid by, agree. Tiles that
+    slipped when placed each move their own way; two wedges turned by the same 30 degrees 10 cm
+    apart did not move as one (one turn would have swung them 5 cm apart). A tile of another type in
+    its place has no motion and is part of none. `offsets`: (x, y, yaw) per tile; `centroids`: its
+    planned centroid (x, y, ...) in the map."""
     motions = np.asarray(offsets, dtype=float).reshape(-1, 3)
+    centres = np.array([c[:2] for c in centroids], dtype=float).reshape(-1, 2)
+    moving = np.any(motions != 0.0, axis=1)
+    motions, centres = motions[moving], centres[moving]
     if len(motions) < 2:
-        return True
-    common = motions[:, :2].mean(axis=0)
-    if np.max(np.linalg.norm(motions[:, :2] - common, axis=1)) > settings.shift / 2:
         return False
-    return bool(np.linalg.norm(common) >= settings.shift or np.ptp(motions[:, 2]) <= settings.turn)
+    shifts = motions[:, :2]
+    if _agree(shifts, settings.shift / 2) and np.linalg.norm(shifts.mean(axis=0)) >= settings.shift:
+        return True
+    if np.ptp(motions[:, 2]) > settings.turn:
+        return False
+    turn = float(np.mean(motions[:, 2]))
+    cos, sin = math.cos(turn), math.sin(turn)
+    swing = centres @ np.array([[cos - 1.0, sin], [-sin, cos - 1.0]])  # (R - I) c, c as rows
+    return _agree(shifts - swing, settings.shift / 2)
+
+
+def _agree(vectors: Array, within: float) -> bool:
+    """Whether every one of `vectors` (rows) lies within `within` of their mean."""
+    return bool(np.max(np.linalg.norm(vectors - vectors.mean(axis=0), axis=1)) <= within)
 
 
 def moved_tile(tile: PlacedTile, offset: tuple[float, float, float]) -> PlacedTile:

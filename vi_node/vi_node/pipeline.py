@@ -819,9 +819,10 @@ class InspectionPipeline:
     def _unless_all_moved(self, result: ScanResult, scan: _Scan) -> ScanResult:
         """No states from a scan in which several tiles seem moved: a misalignment is far more likely
         than three tiles misplaced at once, or two that moved as one (`moved_as_one`), or two moved
-        beside as many called missing (or the whole structure was pushed: S_a no longer fits); nor
-        from one whose pixels doubt the alignment. Two tiles that each moved their own way, in a scan
-        that finds the rest in place, are two misplaced tiles."""
+        beside as many called missing with fewer than two tiles in place to anchor the alignment (or
+        the whole structure was pushed: S_a no longer fits); nor from one whose pixels doubt the
+        alignment. Two tiles that each moved their own way, or two of another type, in a scan that
+        finds tiles in place, are two misplaced tiles."""
         if result.ok and result.doubt:
             return scan.failed(f"alignment doubtful: {result.doubt}")
         judged = len(result.misplacement)
@@ -829,11 +830,13 @@ class InspectionPipeline:
         if len(moved) < 2 or len(moved) < 0.25 * judged:
             return result
         together = f"alignment doubtful: {len(moved)} of {judged} tiles seem moved together"
-        if len(moved) > 2 or moved_as_one([result.misplacement[t][1] for t in moved], self.misplacement_settings):
+        offsets = [result.misplacement[t][1] for t in moved]
+        centroids = [self.model.tiles[self.model.tile_ids.index(t)].centroid for t in moved]
+        if len(moved) > 2 or moved_as_one(offsets, centroids, self.misplacement_settings):
             return scan.failed(together)
         states = [t.state for t in result.tiles]
-        missing = states.count(TileState.MISSING)
-        if missing + len(moved) >= 0.5 * (len(states) - states.count(TileState.OCCLUDED)):
+        missing, anchors = states.count(TileState.MISSING), states.count(TileState.PRESENT)
+        if missing + len(moved) >= 0.5 * (len(states) - states.count(TileState.OCCLUDED)) and anchors < 2:
             return scan.failed(f"alignment doubtful: {len(moved)} tiles seem moved and {missing} missing")
         return result
 
