@@ -151,6 +151,24 @@ def test_a_tile_that_lands_shifted_blocks_its_neighbour_and_is_not_complete() ->
     assert world.complete()
 
 
+def test_a_square_cannot_lie_turned_into_the_long_rectangle_it_touches() -> None:
+    """Square 10 of paper_14 touches long rectangle 12 along an edge: turned 30 degrees its corner
+    would be 7 mm inside the rectangle. With 12 there, it has no room to land so; lying so first,
+    it is in 12's way. Turned 5 degrees (a 1.6 mm poke, placing noise) it is no obstacle."""
+    world = PhysicalWorld(PAPER)
+    for tile in (1, 2, 3, 7, 5, 8, 12):
+        world.place(tile)
+    assert not world.room_for(10, Misplacement(turn=math.radians(30.0)))
+    assert world.room_for(10, Misplacement(turn=math.radians(5.0)))
+    first = PhysicalWorld(PAPER)
+    for tile in (1, 2, 3, 7, 5, 8):
+        first.place(tile)
+    first.place(10, Misplacement(turn=math.radians(30.0)))
+    check, reason = first.check_placement(12)
+    assert check is PlaceCheck.BLOCKED
+    assert "tile 10 lies in the way (turned +30 deg)" in reason
+
+
 def test_a_tile_resting_on_a_turned_tile_cannot_be_placed() -> None:
     world = PhysicalWorld(PAPER)
     for tile in (1, 2, 3):
