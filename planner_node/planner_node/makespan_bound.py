@@ -2,9 +2,9 @@
 
 No plan for N robots can finish before either
 
-* the critical path: along every chain of supports, each tile is placed only after its supports
-  are placed, the first tile of a chain cannot be placed before it was picked and carried, and the
-  robot of the last tile still has to walk back (same phases as `schedule_sim`); or
+* the critical path: along every chain of supports, a robot sets out for a tile only once its
+  supports are placed, then picks, carries and places it, and the robot of the last tile still has
+  to walk back (same phases as `schedule_sim`); or
 * the total work divided among the robots: every robot's busy time is the sum of its tiles'
   costs, so the busiest robot works at least total / N.
 
@@ -46,11 +46,11 @@ def critical_path(graph: AssemblyGraph) -> float:
     place = graph.place.tolist()
     supports = graph.support_lists
     for t in graph.topological_order.tolist():
-        start = head[t]  # the tile is there; then the last of its supports must be placed
+        supported = 0.0  # its robot sets out once the last of its supports is placed
         for s in supports[t]:
-            if earliest_end[s] > start:
-                start = earliest_end[s]
-        earliest_end[t] = start + place[t]
+            if earliest_end[s] > supported:
+                supported = earliest_end[s]
+        earliest_end[t] = supported + head[t] + place[t]
     tail = [e + back for e, back in zip(earliest_end, graph.back.tolist(), strict=True)]
     return max(tail, default=0.0)
 

@@ -103,9 +103,7 @@ def _candidate_moves(
     cost = regions.cost
     moves: list[tuple[int, int]] = []
     # (b) a tile the last robot waits for goes to the robot placing the support it waits on
-    waits = [
-        (result.place_start[t] - result.arrive[t], t) for t in orders[late] if owner[t] == late
-    ]
+    waits = [(result.wait[t], t) for t in orders[late] if owner[t] == late]
     for wait, t in sorted(waits, reverse=True):
         if wait <= IMPROVEMENT_EPSILON:
             break

@@ -183,7 +183,9 @@ class TeamSequencer:
         self.delayed = False
         nan = float("nan")
         self.start, self.arrive, self.place_start = [nan] * n, [nan] * n, [nan] * n
-        self.place_end, self.finish = [nan] * n, [nan] * n
+        self.place_end, self.finish, self.stood = [nan] * n, [nan] * n, [nan] * n
+        # s from a robot's last placement back to a cache: after waiting by it, the robot still walks that
+        self.last_back = [0.0] * n_robots
         self.busy, self.wait = [0.0] * n_robots, [0.0] * n_robots  # summed in each robot's order
 
     def run(self) -> Sequencing:
@@ -214,7 +216,7 @@ class TeamSequencer:
         """Make tile t, whose supports are all scheduled, a candidate of its robot."""
         waiting = self.waiting[self.owner[t]]
         if self.critical_path:
-            heappush(waiting, (self.supports_end[t] - self.travel_time[t] - self.pick_time[t], t))
+            heappush(waiting, (self.supports_end[t], t))
         else:  # floor tiles have nothing to wait for, so they go first
             slack_key = self.supports_end[t] - self.travel_time[t] if self.supports[t] else float("-inf")
             heappush(waiting, (slack_key, -self.foreign_dependents[t], self.layer[t], self.distance[t], t))
@@ -240,9 +242,10 @@ class TeamSequencer:
         """The robot's most urgent tile it can place at `now` without waiting."""
         waiting, ready = self.waiting[robot], self.ready[robot]
         scheduled, owner = self.scheduled, self.owner  # `is_current` inlined: this runs for every choice
+        last_placed = now - self.last_back[robot]  # it may set out once the supports are placed by then
         while waiting:
-            placeable_at, t = waiting[0]
-            if placeable_at > now and not scheduled[t] and owner[t] == robot:
+            supports_end, t = waiting[0]
+            if supports_end > last_placed and not scheduled[t] and owner[t] == robot:
                 break
             heappop(waiting)
             if not scheduled[t] and owner[t] == robot:
@@ -288,18 +291,20 @@ class TeamSequencer:
         self.remaining_work[robot] -= self.cost[t]
         if now != self.free_at[robot]:
             self.delayed = True
+        leaves = self.supports_end[t] + self.last_back[robot]  # as `schedule_sim` works it out, bit for bit
+        stood = leaves - now if leaves > now else 0.0
+        now += stood
         if not self.orders[robot]:
             now += self.first_trip[robot][t]
-        travel, supports_end = self.travel_time[t], self.supports_end[t]
-        arrive = now + self.pick_time[t] + travel
-        begin = supports_end if supports_end > arrive else arrive
-        end = begin + self.place_time[t]
+        arrive = now + self.pick_time[t] + self.travel_time[t]
+        end = arrive + self.place_time[t]
         self.free_at[robot] = end + self.back_time[t]
+        self.last_back[robot] = self.back_time[t]
         self.orders[robot].append(t)
         if not self.delayed:  # as schedule_sim.simulate_orders works them out
-            self.start[t], self.arrive[t], self.place_start[t] = now, arrive, begin
-            self.place_end[t], self.finish[t] = end, end + self.back_time[t]
-            self.wait[robot] += begin - arrive
+            self.start[t], self.arrive[t], self.place_start[t] = now, arrive, arrive
+            self.place_end[t], self.finish[t], self.stood[t] = end, end + self.back_time[t], stood
+            self.wait[robot] += stood
             self.busy[robot] += self.cost[t]
         return end
 
@@ -313,6 +318,7 @@ class TeamSequencer:
             place_start=np.array(self.place_start),
             place_end=np.array(self.place_end),
             finish=np.array(self.finish),
+            wait=np.array(self.stood),
             robot_busy=np.array(self.busy),
             robot_wait=np.array(self.wait),
             robot_finish=np.array(self.free_at),
@@ -330,14 +336,14 @@ class TeamSequencer:
         """Offer the tiles that tile t was the last unscheduled support of, placed by `end`, and
         wake the idle robots that may now place them (at `now`)."""
         supports_end, unscheduled, owner, idle = self.supports_end, self.unscheduled_supports, self.owner, self.idle
-        critical_path, waiting, travel, pick = self.critical_path, self.waiting, self.travel_time, self.pick_time
+        critical_path, waiting = self.critical_path, self.waiting
         for d in self.dependents[t]:
             if end > supports_end[d]:
                 supports_end[d] = end
             unscheduled[d] -= 1
             if unscheduled[d] == 0:
                 if critical_path:  # `offer` inlined: this runs for nearly every tile
-                    heappush(waiting[owner[d]], (supports_end[d] - travel[d] - pick[d], d))
+                    heappush(waiting[owner[d]], (supports_end[d], d))
                 else:
                     self.offer(d)
                 if idle[owner[d]]:

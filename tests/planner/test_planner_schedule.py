@@ -73,22 +73,24 @@ def back_from(x: float) -> float:
     return (2 * math.hypot(x, 1.0) + math.hypot(x - 0.05, 1.0)) / 3 / 0.5
 
 
-def test_times_of_a_plan_without_waiting() -> None:
+def test_times_of_a_plan_with_next_to_no_waiting() -> None:
     schedule = simulate_plan(arch(), TIMES, {"robot1": [1, 3], "robot2": [2]})
     assert schedule.completed
     one, three = schedule.robots[0].tiles
     # robot1 starts at the block cache: pick 5 s, carry 2 s, place 10 s, walk back to a cache ~2 s
     times = (one.start, one.arrive, one.place_start, one.place_end, one.finish)
     assert times == pytest.approx((0, 7, 7, 17, 17 + back_from(0.0)))
-    # then the beam: its supports are placed at 17 s and 17.01 s, long before it arrives at ~26 s
-    beam_start = 17 + back_from(0.0)
+    # then the beam: its supports are placed at 17 s and 17.01 s; robot1 sets out for it once the
+    # second is there (it stood 0.01 s by block 1), walks back to the beam cache and picks it
+    second_support = 5 + B_TRAVEL + 10
+    assert schedule.timing(2).place_end == pytest.approx(second_support)
+    beam_start = second_support + back_from(0.0)
     assert (three.start, three.arrive, three.place_start) == pytest.approx((beam_start, beam_start + 7,
                                                                             beam_start + 7))
     assert three.finish == pytest.approx(beam_start + 17 + back_from(0.05))
-    assert three.wait == pytest.approx(0.0)
-    assert schedule.timing(2).place_end == pytest.approx(5 + B_TRAVEL + 10)
+    assert three.wait == pytest.approx(second_support - 17)
     assert schedule.makespan == pytest.approx(three.finish)
-    assert schedule.total_wait == pytest.approx(0.0)
+    assert schedule.total_wait == pytest.approx(second_support - 17)
 
 
 def test_a_robot_waits_for_a_support_placed_by_another() -> None:
@@ -96,13 +98,14 @@ def test_a_robot_waits_for_a_support_placed_by_another() -> None:
     beam = schedule.timing(3)
     last_support = 17 + back_from(0.0) + 5 + B_TRAVEL + 10  # robot2 places block 2 after block 1
     assert schedule.timing(2).place_end == pytest.approx(last_support)
-    assert beam.arrive == pytest.approx(7.0)
-    assert beam.place_start == pytest.approx(last_support)
-    assert beam.wait == pytest.approx(last_support - 7.0)
+    # robot1 stands at the beam cache until then (its goal is sent once the supports are placed)
+    assert beam.start == pytest.approx(last_support)
+    assert beam.arrive == beam.place_start == pytest.approx(last_support + 7.0)
+    assert beam.wait == pytest.approx(last_support)
     robot1 = schedule.robots[0]
     assert robot1.busy == pytest.approx(TIMES.tile_cost(arch(), 3))
     assert robot1.finish == pytest.approx(robot1.busy + robot1.wait)
-    assert schedule.makespan == pytest.approx(last_support + 10.0 + back_from(0.05))
+    assert schedule.makespan == pytest.approx(last_support + 7.0 + 10.0 + back_from(0.05))
 
 
 def test_contradictory_orders_deadlock_and_name_the_blocked_tiles() -> None:
@@ -125,8 +128,9 @@ def test_bad_orders_are_refused() -> None:
 def test_lower_bound_of_the_arch() -> None:
     graph = build_graph(arch(), TIMES)
     bound = makespan_lower_bound(graph, 2)
-    # the chain block 2 -> beam: pick + carry block 2, place it, place the beam, walk back
-    assert bound.critical_path == pytest.approx(5 + B_TRAVEL + 10 + 10 + back_from(0.05))
+    # the chain block 2 -> beam: pick + carry block 2, place it; then set out for the beam: pick and
+    # carry it (7 s), place it, walk back
+    assert bound.critical_path == pytest.approx(5 + B_TRAVEL + 10 + 7 + 10 + back_from(0.05))
     assert bound.work_per_robot == pytest.approx(sum(TIMES.tile_cost(arch(), t) for t in (1, 2, 3)) / 2)
     assert bound.value == pytest.approx(max(bound.critical_path, bound.work_per_robot))
     cheapest = sorted(TIMES.tile_cost(arch(), t) for t in (1, 2, 3))[:2]
@@ -318,8 +322,9 @@ def test_robots_standing_away_from_their_caches_drive_there_first() -> None:
     assert (one.start, one.arrive) == pytest.approx((2.0, 2.0 + 5 + 2))
     robot1 = schedule.robots[0]
     assert robot1.finish == pytest.approx(2.0 + robot1.busy + robot1.wait)  # the drive is not work
-    beam = schedule.timing(3)
-    assert beam.start == 0.0 and beam.place_start == pytest.approx(schedule.timing(2).place_end)
+    beam = schedule.timing(3)  # robot2 stands at the beam cache until block 2 is placed
+    assert beam.start == pytest.approx(schedule.timing(2).place_end)
+    assert beam.place_start == pytest.approx(beam.start + 7.0)
 
 
 def test_a_plan_for_robots_away_from_their_caches_hands_each_the_task_that_starts_near_it() -> None:
