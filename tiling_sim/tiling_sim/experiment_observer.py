@@ -128,6 +128,7 @@ class ExperimentObserver(Node):
             t=self.now(), revision=msg.revision, method=msg.method,
             tasks={t.robot_name: list(t.tile_ids) for t in msg.tasks},
             makespan=msg.makespan, lower_bound=msg.lower_bound,
+            finishes={t.robot_name: t.estimated_finish for t in msg.tasks},
         ))
 
     def on_states(self, msg: TileStateArray) -> None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from tiling_assembly.structure import Structure
 from tiling_assembly.time_model import TimeModel
-from tiling_sim.trial_record import TrialRecord
+from tiling_sim.trial_record import PlanRecord, TrialRecord
 
 Point2 = tuple[float, float]
 PLACEMENT_ENDS = frozenset({"placed", "dropped", "already_present", "refused"})
@@ -68,12 +68,25 @@ def _account(
                         finished=last_end - record.started_at)
 
 
-def account_lines(accounts: list[RobotAccount], planned_makespan: float | None, makespan: float | None) -> list[str]:
-    """The accounts as report lines."""
+def planned_completion(plan: PlanRecord, structure: Structure, model: TimeModel) -> float | None:
+    """When the plan places its last tile (s): a robot's planned finish less its walk back from its
+    last tile, the latest of them. The plan's makespan ends with that walk; a build is complete
+    when its last tile is placed. None when the plan has no finish times."""
+    ends = [plan.finishes[robot] - model.return_time(structure, tiles[-1])
+            for robot, tiles in plan.tasks.items() if tiles and robot in plan.finishes]
+    return max(ends) if ends else None
+
+
+def account_lines(accounts: list[RobotAccount], planned_makespan: float | None, makespan: float | None,
+                  completion: float | None = None) -> list[str]:
+    """The accounts as report lines; `completion`: when the plan places its last tile."""
     lines = []
     if planned_makespan and makespan:
         lines.append(f"Plan vs execution (trial without faults): makespan {makespan:.1f} s executed, "
                      f"{planned_makespan:.1f} s planned ({100.0 * (makespan / planned_makespan - 1):+.1f}%)")
+    if completion and makespan:
+        lines.append(f"  the plan places its last tile at {completion:.1f} s (its makespan adds the walk back): "
+                     f"executed {100.0 * (makespan / completion - 1):+.1f}% of that")
     for a in accounts:
         lines.append(f"  {a.robot}: {len(a.tiles)} tiles, work planned {a.planned_work:.1f} s "
                      f"(first drive {a.first_drive:.1f} s), placing "

@@ -24,7 +24,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from tiling_assembly.structure import Structure
 from tiling_sim.experiment_result import ExperimentConfig, ExperimentResult
-from tiling_sim.plan_vs_execution import account_lines, robot_accounts
+from tiling_sim.plan_vs_execution import account_lines, planned_completion, robot_accounts
 from tiling_sim.trial_record import (
     MISSING,
     OCCLUDED,
@@ -159,8 +159,10 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
     if baseline:
         lines.append(f"Makespan without faults: {baseline[0]:.0f} s simulated")
         trial0 = next(r for r in result.records if r.trial == 0)
-        lines += account_lines(robot_accounts(trial0, result.structure, result.time_model(), result.robot_starts),
-                               None if first is None else first.makespan, baseline[0])
+        model = result.time_model()
+        completion = None if first is None else planned_completion(first, result.structure, model)
+        lines += account_lines(robot_accounts(trial0, result.structure, model, result.robot_starts),
+                               None if first is None else first.makespan, baseline[0], completion)
     if faulty:
         lines.append(
             f"Makespan with faults: median {statistics.median(faulty):.0f} s, "
@@ -430,6 +432,8 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
     return {"structure": result.structure.name, "robots": result.config.robot_names,
             "vi_robots": result.config.vi_robot_names if result.config.inspection else [],
             "planned_makespan": None if first is None else first.makespan,
+            "planned_completion": None if first is None else planned_completion(first, result.structure,
+                                                                                result.time_model()),
             "lower_bound": None if first is None else first.lower_bound,
             "network": {**result.config.network.as_dict(), "real_time_factor": result.config.real_time_factor,
                         "link_counters": result.link_counters},

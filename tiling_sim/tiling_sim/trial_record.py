@@ -108,6 +108,7 @@ class PlanRecord:
     tasks: dict[str, list[int]]
     makespan: float
     lower_bound: float
+    finishes: dict[str, float] = field(default_factory=dict)  # s, each robot back at a cache after its last tile
 
 
 @dataclass
