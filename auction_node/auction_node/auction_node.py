@@ -282,10 +282,8 @@ class AuctionNode(Node):
         flagged = self.detector.flagged(verdicts, at, view)
         self.tell_deferred({t for t, wrong in verdicts.items() if wrong})
         for tile_id in flagged:
-            found = offsets[tile_id]
             self.repair(tile_id, f"scans from {self.detector.confirmations} camera positions say misplaced, last "
-                                 f"off by {100 * (found.offset_x ** 2 + found.offset_y ** 2) ** 0.5:.1f} cm, "
-                                 f"{math.degrees(found.offset_yaw):+.0f} deg")
+                                 f"{how_it_lies(offsets[tile_id])}")
 
     def tell_deferred(self, called_wrong: set[int]) -> None:
         """One line the first time a scan's word against a tile waits for the wrong tile on it."""
@@ -456,6 +454,14 @@ class AuctionNode(Node):
                 self.announce(tile_id, AuctionAnnouncement.REASON_ROBOT_LOST)
 
         future.add_done_callback(done)
+
+
+def how_it_lies(found: TileState) -> str:
+    """What the scan found at a misplaced tile's place, in words."""
+    if found.seen_type:
+        return f"a {found.seen_type} in its place"
+    return (f"off by {100 * (found.offset_x ** 2 + found.offset_y ** 2) ** 0.5:.1f} cm, "
+            f"{math.degrees(found.offset_yaw):+.0f} deg")
 
 
 def main(args: list[str] | None = None) -> int:

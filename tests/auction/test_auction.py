@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 
 from auction_node.auction import AuctionBook, choose_winner, natural_key
+from auction_node.auction_node import how_it_lies
+from tiling_assembly_msgs.msg import TileState
 
 
 def test_lowest_bid_wins_and_ties_break_by_natural_name() -> None:
@@ -68,3 +70,11 @@ def test_lost_bidder_does_not_hold_up_the_auction() -> None:
     book.forget_bidder("robot2")
     (award,) = book.close_ready(0.2)
     assert award.winner == "robot1"
+
+
+def test_a_repair_line_says_how_the_tile_lies() -> None:
+    """A tile of another type in its place is named, not reported 'off by 0.0 cm, +0 deg'."""
+    assert how_it_lies(TileState(tile_id=10, state=TileState.MISPLACED, seen_type="triangle")) == \
+        "a triangle in its place"
+    shifted = TileState(tile_id=6, state=TileState.MISPLACED, offset_x=0.03, offset_y=0.04, offset_yaw=0.26)
+    assert how_it_lies(shifted) == "off by 5.0 cm, +15 deg"

@@ -115,6 +115,25 @@ def test_a_misplaced_tile_stays_misplaced_until_seen_in_place() -> None:
     assert fusion.state_of(4) == TileState.PRESENT
 
 
+def test_the_type_found_in_a_tiles_place_stays_with_its_flag_and_goes_with_it() -> None:
+    """A scan that tells a triangle in square 10's place names it; later views that only repeat the
+    flag keep the name, a view that finds the tile in place clears both."""
+    fusion = TileFusion()
+
+    def scan(state: TileState, flagged: bool, seen_type: str = "") -> ScanResult:
+        e = seen(60, 40, 120)
+        tile = TileResult(10, state, 60, 120, 0.6, seen_type=seen_type)
+        return ScanResult(True, tiles=[tile], tile_ids=(10,), evidence=e, evidence_states=np.array([int(state)]),
+                          misplacement={10: (flagged, (0.0, 0.0, 0.0), 0.003)})
+
+    assert fuse_scan(fusion, scan(TileState.MISPLACED, True, "triangle")).by_id()[10].seen_type == "triangle"
+    repeat = fuse_scan(fusion, scan(TileState.OCCLUDED, False)).by_id()[10]
+    assert repeat.state == TileState.MISPLACED and repeat.seen_type == "triangle"
+    fusion.add([10], seen(200, 0, 210), [P], {10: (False, (0.0, 0.0, 0.0), 0.002)})
+    fused = fusion.tiles[10]
+    assert fusion.state_of(10) == TileState.PRESENT and not fused.misplaced
+
+
 def test_a_flagged_tile_whose_place_a_later_view_sees_empty_is_missing() -> None:
     """A removed trapezoid flagged once (a misaligned view) must not stay "misplaced": a view that
     sees its place empty and finds nothing of it moved nearby makes it missing, and so does one

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from vi_helpers import states_from, structure
+from vi_helpers import results_from, structure
 
 from tiling_assembly.geometry import PlacedTile
 from tiling_sim.inspection_scenarios import Scene, view_from
@@ -122,7 +122,13 @@ def test_the_pipeline_flags_a_triangle_where_a_square_was_planned_and_nothing_el
     views: neither a refit nor 'something of another shape' (a third of its pixels seeing through)
     caught it."""
     paper = structure()
-    states = states_from(Scene(paper, tuple(paper.tile_ids), (), {10: _swapped(10, "triangle")}), 10,
-                         (45.0, 90.0, 135.0), seeds=(21, 22))
+    results = results_from(Scene(paper, tuple(paper.tile_ids), (), {10: _swapped(10, "triangle")}), 10,
+                           (45.0, 90.0, 135.0), seeds=(21, 22))
+    states = [r.state for r in results]
     assert TileState.PRESENT not in states
     assert states.count(TileState.MISPLACED) >= 2
+    # a scan that tells it by the two types' pixels names what lies there (for the repair's line on
+    # /auction/decisions); one that flagged it some other way (a refit, another shape) names nothing
+    assert "triangle" in {r.seen_type for r in results if r.state == TileState.MISPLACED}
+    assert {r.seen_type for r in results} <= {"", "triangle"}
+    assert {r.seen_type for r in results if r.state != TileState.MISPLACED} <= {""}

@@ -18,6 +18,7 @@ from vi_node.classify import TileState
 from vi_node.inspection_settings import InspectionSettings
 from vi_node.pipeline import InspectionPipeline
 from vi_node.pose_prior import OverheadPose
+from vi_node.scan_result import TileResult
 
 REPO = Path(__file__).resolve().parents[2]
 STRUCTURES = REPO / "config" / "structures"
@@ -48,13 +49,18 @@ def rng(seed: int) -> np.random.Generator:
 
 
 def states_from(scene: Scene, tile_id: int, bearings: tuple[float, ...], seeds: tuple[int, int]) -> list[TileState]:
-    """The states of `tile_id` in simulated scans of `scene` from `bearings` (degrees, 1 m away;
-    `seeds`: of the Kinect's noise and of the views' errors), asserting that every scan aligns and
-    flags no other tile misplaced."""
+    """The states of `tile_id` in simulated scans of `scene` (`results_from`)."""
+    return [result.state for result in results_from(scene, tile_id, bearings, seeds)]
+
+
+def results_from(scene: Scene, tile_id: int, bearings: tuple[float, ...], seeds: tuple[int, int]) -> list[TileResult]:
+    """What simulated scans of `scene` from `bearings` (degrees, 1 m away; `seeds`: of the Kinect's
+    noise and of the views' errors) say of `tile_id`, asserting that every scan aligns and flags no
+    other tile misplaced."""
     pipeline = InspectionPipeline(scene.structure, None, InspectionSettings())
     simulator = KinectSimulator(seed=seeds[0])
     rng = np.random.default_rng(seeds[1])
-    states = []
+    results = []
     for bearing in bearings:
         view = view_from(scene.centre, math.radians(bearing), 1.0, rng)
         result = pipeline.inspect(simulator.scan(scene.kinect_scene, view.camera),
@@ -62,5 +68,5 @@ def states_from(scene: Scene, tile_id: int, bearings: tuple[float, ...], seeds: 
         assert result.ok, result.reason
         by_id = result.by_id()
         assert [t for t, s in by_id.items() if s.state == TileState.MISPLACED and t != tile_id] == []
-        states.append(by_id[tile_id].state)
-    return states
+        results.append(by_id[tile_id])
+    return results

@@ -181,6 +181,8 @@ def result_json(stamp_ns: int, result: ScanResult | None, error: str = "", pixel
             entry["scans"] = tile.scans
         if tile.state == TileState.MISPLACED:
             entry["offset"] = [round(tile.offset[0], 4), round(tile.offset[1], 4), round(tile.offset[2], 4)]
+            if tile.seen_type:
+                entry["seen_type"] = tile.seen_type
         out["tiles"][str(tile.tile_id)] = entry
     out["scan_count"] = result.scan_count
     out["alignment_rms"] = round(result.alignment_rms, 5) if math.isfinite(result.alignment_rms) else None

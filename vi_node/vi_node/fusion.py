@@ -26,7 +26,7 @@ decides it.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -49,6 +49,7 @@ class FusedTile:
     residual: float = 0.0
     largest_view: int = 0  # most pixels of the tile judged in one scan
     flagged_counts: tuple[int, int, int] | None = None  # (agree, see-through, scans) reported when last flagged
+    seen_type: str = ""  # when misplaced: the type that lies there instead, if a scan could tell
 
 
 @dataclass
@@ -75,11 +76,13 @@ class TileFusion:
         evidence: TileEvidence,
         states: Iterable[int],
         misplacement: dict[int, tuple[bool, tuple[float, float, float], float]] | None = None,
+        seen_types: Mapping[int, str] | None = None,
     ) -> dict[int, FusedTile]:
         """Add one scan: per-tile evidence (arrays in `tile_ids` order) and the scan's own states.
 
         `misplacement` maps tile ids the scan could judge for misplacement to (flagged, offset,
-        residual). Returns the fused view of exactly these tiles.
+        residual); `seen_types` the tiles it found another type lying in the place of to that type.
+        Returns the fused view of exactly these tiles.
         """
         self.scans += 1
         ids = [int(t) for t in tile_ids]
@@ -114,6 +117,7 @@ class TileFusion:
                 flagged, offset, residual = misplacement[tile_id]
                 if flagged:
                     fused.misplaced, fused.offset, fused.residual = True, offset, residual
+                    fused.seen_type = (seen_types or {}).get(tile_id, "")
                 elif scan_state == TileState.PRESENT:  # seen in place: whatever moved it was put right
                     fused.misplaced, fused.offset, fused.flagged_counts = False, (0.0, 0.0, 0.0), None
             if scan_state == TileState.MISSING and not (misplacement and misplacement.get(tile_id, (False,))[0]):
@@ -185,7 +189,8 @@ def fuse_scan(fusion: TileFusion, result: ScanResult) -> ScanResult:
     """
     if not result.ok or result.evidence is None or result.evidence_states is None:
         return result
-    fused = fusion.add(result.tile_ids, result.evidence, result.evidence_states, result.misplacement)
+    seen_types = {t.tile_id: t.seen_type for t in result.tiles if t.seen_type}
+    fused = fusion.add(result.tile_ids, result.evidence, result.evidence_states, result.misplacement, seen_types)
     flagged_now = {t for t, (flagged, _, _) in (result.misplacement or {}).items() if flagged}
     tiles: list[TileResult] = []
     single = result.by_id()
@@ -216,6 +221,7 @@ def fuse_scan(fusion: TileFusion, result: ScanResult) -> ScanResult:
                 judged=int(e.judged[0]),
                 offset=entry.offset if entry.misplaced else (0.0, 0.0, 0.0),
                 scans=scans,
+                seen_type=entry.seen_type if entry.misplaced else "",
             )
         )
     return replace(result, tiles=tiles, scan_count=fusion.scans)

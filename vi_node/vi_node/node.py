@@ -439,6 +439,7 @@ class ViNode(Node):
                     offset_x=float(tile.offset[0]),
                     offset_y=float(tile.offset[1]),
                     offset_yaw=float(tile.offset[2]),
+                    seen_type=tile.seen_type,
                 )
             )
         return out

@@ -741,7 +741,10 @@ class InspectionPipeline:
                 tile.state = TileState.OCCLUDED
         for index in self._disturbed_tiles(result, blank=True):
             tile = result.tiles[index]
-            if tile.state is not TileState.MISPLACED and self._another_type_explains(scan, pose, index):
+            if tile.state is TileState.MISPLACED:
+                continue
+            tile.seen_type = self._another_type_explaining(scan, pose, index)
+            if tile.seen_type:
                 tile.state, tile.offset = TileState.MISPLACED, (0.0, 0.0, 0.0)
                 result.misplacement[tile.tile_id] = (True, tile.offset, tile.residual)
 
@@ -770,9 +773,9 @@ class InspectionPipeline:
                 disturbed.append(k)
         return disturbed
 
-    def _another_type_explains(self, scan: _Scan, pose: Array, index: int) -> bool:
-        """Whether a tile of another type at the tile's planned pose explains its pixels clearly better
-        than the planned type (`type_hypotheses`): a robot took a tile from the wrong cache."""
+    def _another_type_explaining(self, scan: _Scan, pose: Array, index: int) -> str:
+        """The type of a tile that, at the tile's planned pose, explains its pixels clearly better than
+        the planned type (`type_hypotheses`: a robot took a tile from the wrong cache), or ""."""
         settings, model = self.misplacement_settings, self.model
         masked = _either(scan.masked, scan.unjudged)
         for rival in rival_tiles(model.tiles[index], self.tile_shapes):
@@ -782,8 +785,8 @@ class InspectionPipeline:
             votes = type_votes(model.scene, index, rival, image, self.evidence_settings,
                                (self.settings.min_range, self.settings.max_range))
             if votes.rival_explains(settings.rival_share, settings.rival_pixels):
-                return True
-        return False
+                return rival.type_name
+        return ""
 
     def _judge_again_without_moved_tiles(self, scan: _Scan, level: Array, first: ScanResult) -> ScanResult:
         """A misplaced tile pulls the alignment towards where it lies: search and align once more,

@@ -40,6 +40,7 @@ class TileResult:
     ambiguous: int = 0  # measured where both "there" and "gone" explain it
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # MISPLACED: the tile's x, y (m), yaw (rad) motion
     scans: int = 1
+    seen_type: str = ""  # MISPLACED: the tile type that lies there instead, when another type explains it
 
 
 @dataclass
