@@ -201,3 +201,14 @@ def test_noise_grows_with_depth_and_at_grazing_incidence() -> None:
     assert gen.axial_sigma(np.array([1.0]), np.array([math.radians(70)]))[0] > sigma[0] + 0.0005
     assert gen.lateral_sigma_px(np.array([0.0]))[0] == pytest.approx(0.8)
     assert gen.quantise(np.array([1.0]))[0] == pytest.approx(1 / (3.0 - 2.85e-3 * 702), abs=5e-4)
+
+
+def test_the_scorer_measures_a_turn_from_the_nearest_turn_that_maps_the_tile_onto_itself() -> None:
+    """An octagon turned 44.9 degrees lies as planned (its shape repeats every 45): no misplaced tile
+    for the scorer to count. A square turned 80 degrees is turned 10, a triangle turned 40 is turned 40."""
+    scorer = _load("score_inspection")
+    truth = {"structure": "config/structures/paper_14.yaml"}
+    octagon = scorer.effective_turn_deg(truth, {"id": 5, "turn": math.radians(-44.9)})
+    assert octagon == pytest.approx(0.1, abs=1e-6)
+    assert scorer.effective_turn_deg(truth, {"id": 9, "turn": math.radians(80.0)}) == pytest.approx(10.0)
+    assert scorer.effective_turn_deg(truth, {"id": 13, "turn": math.radians(40.0)}) == pytest.approx(40.0)
