@@ -272,6 +272,26 @@ def test_pixels_mixed_between_a_tile_and_a_robot_behind_it_are_no_other_tile() -
     assert verdicts == [True, True, False]
 
 
+def test_a_first_step_as_large_as_a_flag_is_refitted_even_where_no_pixel_disagrees() -> None:
+    """Seen at grazing incidence, a small tile turned 29 degrees can agree on every pixel it shows;
+    its points still say it turned. Its pixels not disturbed, the refit runs on the first step alone
+    when that step is as large as a flag (the pixels then decide whether it is believed)."""
+    block = PlacedTile(1, "block", _box_type(0.05, 0.05, 0.05), np.eye(3), np.array([0.0, 0.0, 0.0]))
+    turned = moved_tile(block, (0.0, 0.0, math.radians(25.0)))
+    across = np.linspace(-0.022, 0.022, 9)
+    local = np.vstack([np.array([[x, y, 0.05] for x in across for y in across]),
+                       np.array([[x, -0.025, z] for x in across for z in np.linspace(0.004, 0.046, 9)]),
+                       np.array([[0.025, y, z] for y in across for z in np.linspace(0.004, 0.046, 9)])])
+    points = local @ turned.rotation.T + turned.position
+    patches, scene = PlanarPatches([block]), VirtualScene([block])
+    closest, normal, tile = scene.closest_points(points)
+    scan = ScanPoints(points, np.ones(len(points)), tile, closest, normal)
+    context = PlacementContext(patches=patches, camera_position=np.array([0.6, -1.0, 0.6]), tiles=[block],
+                               surfaces=scene, solid=[True], disturbed=[False])
+    fit = assess(scan, context, MisplacementSettings())[0]
+    assert fit.misplaced and abs(math.degrees(fit.offset[2]) - 25.0) < 3.0
+
+
 def _box_type(length: float, width: float, height: float) -> object:
     hx, hy = length / 2, width / 2
     return prism_shape(np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]), height)

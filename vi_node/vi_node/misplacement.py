@@ -307,7 +307,10 @@ def _judge_tile(
     count, rms, step = int(first.points[index]), float(first.rms[index]), first.step[index]
     judged = bool(count >= settings.min_points)
     hint = math.hypot(step[0], step[1]) >= 0.4 * settings.shift or abs(step[2]) >= 0.4 * settings.turn
-    possible = bool(context.disturbed[index])
+    # a first step as large as a flag is reason enough where no pixel disagrees: a triangle turned 29
+    # degrees, seen at grazing incidence, agreed on all its 82 pixels and was called present
+    strong = math.hypot(step[0], step[1]) >= settings.shift or abs(step[2]) >= settings.turn
+    possible = bool(context.disturbed[index]) or strong
     unmoved = TileFit(points=count, residual=rms, judged=judged, misplaced=False, residual_after=rms, first_step=step)
     if not (judged and possible and (hint or index in context.suspects)):
         return unmoved
