@@ -306,11 +306,10 @@ def _judge_tile(
     the points a tile found moved explains as `claimed`."""
     count, rms, step = int(first.points[index]), float(first.rms[index]), first.step[index]
     judged = bool(count >= settings.min_points)
-    hint = math.hypot(step[0], step[1]) >= 0.4 * settings.shift or abs(step[2]) >= 0.4 * settings.turn
+    hint = _step_reaches(step, 0.4, settings)
     # a first step as large as a flag is reason enough where no pixel disagrees: a triangle turned 29
     # degrees, seen at grazing incidence, agreed on all its 82 pixels and was called present
-    strong = math.hypot(step[0], step[1]) >= settings.shift or abs(step[2]) >= settings.turn
-    possible = bool(context.disturbed[index]) or strong
+    possible = bool(context.disturbed[index]) or _step_reaches(step, 1.0, settings)
     unmoved = TileFit(points=count, residual=rms, judged=judged, misplaced=False, residual_after=rms, first_step=step)
     if not (judged and possible and (hint or index in context.suspects)):
         return unmoved
@@ -345,6 +344,11 @@ def _judge_tile(
         median_before=refit.before,
         sigmas=(refit.shift_sigmas, refit.turn_sigmas),
     )
+
+
+def _step_reaches(step: Array, share: float, settings: MisplacementSettings) -> bool:
+    """Whether a first step (x, y, yaw) reaches `share` of the shift or of the turn that flags a tile."""
+    return math.hypot(step[0], step[1]) >= share * settings.shift or abs(step[2]) >= share * settings.turn
 
 
 def moved_as_one(
