@@ -18,6 +18,7 @@ from vi_node.evidence import (
     interior,
     pixel_evidence,
     smooth,
+    too_deep,
     unexpected,
 )
 from vi_node.expected_returns import ReturnExpectation
@@ -118,6 +119,20 @@ def test_tiles_are_decided_relative_to_what_the_view_predicts(
     agree: int, through: int, judged: int, state: TileState
 ) -> None:
     assert TileState(int(decide(evidence(agree, through, judged), SETTINGS)[0])) == state
+
+
+def test_nothing_counts_against_a_tile_too_deep_in_the_view_to_tell_it_gone() -> None:
+    """A pier block in place 2.9 m off saw past its face on 15 of its 19 decisive pixels: an
+    alignment turned 0.7 degrees moves it 1.5 cm there, and a disparity step is 2.4 cm. Beyond 2.6 m
+    (the camera resolving 2 cm or worse) its see-through and blank pixels say nothing."""
+    assert too_deep(np.array([1.0, 2.0, 2.5, 2.7, 3.0]), SETTINGS).tolist() == [False, False, False, True, True]
+    seen = evidence(4, 13, 30)
+    seen.blank[0] = 2
+    assert TileState(int(decide(seen, SETTINGS)[0])) == TileState.MISSING
+    far = seen.unopposed(np.array([True]))
+    assert TileState(int(decide(far, SETTINGS)[0])) == TileState.OCCLUDED
+    assert far.against.tolist() == [0] and far.agree.tolist() == [4]
+    assert seen.unopposed(np.array([False])).against.tolist() == [15]
 
 
 # -- two hypotheses: "the tile is there" against "the tile is gone" -------------------------------

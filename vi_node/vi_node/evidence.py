@@ -28,12 +28,13 @@ clear pixels among ambiguous ones.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from vi_node.classify import TileState
+from vi_node.depth_noise import axial_sigma, disparity_step, resolved_motion
 from vi_node.expected_returns import ReturnSettings
 from vi_node.raycast import VirtualScan
 
@@ -51,6 +52,10 @@ class EvidenceSettings:
     present_fraction: float = 0.7  # present when this share of the decisive pixels agree ...
     present_share: float = 0.3  # ... and they are this share of every pixel that saw its place
     missing_fraction: float = 0.6  # missing when this share of the decisive pixels are against it
+    # m: no pixel counts against a tile where the camera resolves no better (`depth_noise`; 2.6 m
+    # deep): there the alignment's least turn moves a tile's edges by as much (a pier block in
+    # place 2.9 m off saw past it on 15 of its 19 decisive pixels)
+    against_resolution: float = 0.02
     returns: ReturnSettings = field(default_factory=ReturnSettings)
 
 
@@ -88,6 +93,10 @@ class TileEvidence:
     def __add__(self, other: TileEvidence) -> TileEvidence:
         return TileEvidence(**{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)})
 
+    def unopposed(self, tiles: NDArray[np.bool_]) -> TileEvidence:
+        """This evidence with nothing against `tiles`: their see-through and blank pixels say nothing."""
+        return replace(self, see_through=np.where(tiles, 0, self.see_through), blank=np.where(tiles, 0, self.blank))
+
     def take(self, index: int) -> TileEvidence:
         """The evidence of one tile, as arrays of length 1."""
         s = slice(index, index + 1)
@@ -106,10 +115,9 @@ def depth_tolerance(
     Axial noise (Nguyen et al. 2012) and half a disparity step (Khoshelham 2012) at that depth,
     plus a margin for model and pose error that grows on oblique faces.
     """
-    sigma = 0.0012 + 0.0019 * (depth - 0.4) ** 2
-    step = 2.85e-3 * depth**2
     return (
-        settings.depth_sigmas * sigma + 0.5 * step + settings.depth_margin / np.maximum(cos_incidence, 0.2)
+        settings.depth_sigmas * axial_sigma(depth) + 0.5 * disparity_step(depth)
+        + settings.depth_margin / np.maximum(cos_incidence, 0.2)
     ).astype(np.float32)
 
 
@@ -226,6 +234,11 @@ def _fits_gone(measured: NDArray[np.float32], virtual: VirtualScan, settings: Ev
     finite = np.isfinite(behind.depth)
     tolerance = depth_tolerance(np.where(finite, behind.depth, 1.0), behind.cos_incidence, settings)
     return finite & (measured >= low - tolerance) & (measured <= high + tolerance)
+
+
+def too_deep(depth: NDArray[np.float64], settings: EvidenceSettings) -> NDArray[np.bool_]:
+    """Which tiles, at these depths (m) in the camera, lie where no pixel counts against them."""
+    return resolved_motion(depth) > settings.against_resolution
 
 
 def decide(evidence: TileEvidence, settings: EvidenceSettings) -> NDArray[np.int64]:

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from tiling_assembly.geometry import rotation_from_rpy, rpy_from_rotation
 from vi_node.camera_model import OPTICAL_FROM_LINK
+from vi_node.depth_noise import axial_sigma
 
 Array = NDArray[np.float64]
 
@@ -54,10 +55,6 @@ class FloorFit:
     sample: Array
 
 
-def _axial_sigma(z: Array) -> Array:
-    return 0.0012 + 0.0019 * (z - 0.4) ** 2
-
-
 def fit_floor(
     cloud: NDArray[np.float32],
     prior: Array,
@@ -77,11 +74,11 @@ def fit_floor(
     keep = _consensus(points, up_prior, prior[2, 3], settings)
     if keep is None:
         return None
-    weights = 1.0 / _axial_sigma(points[:, 2]) ** 2
+    weights = 1.0 / axial_sigma(points[:, 2]) ** 2
     normal, offset = up_prior, 0.0
     for _ in range(3):
         normal, offset = _weighted_plane(points[keep], weights[keep], up_prior)
-        new_keep = np.abs(points @ normal - offset) / _axial_sigma(points[:, 2]) < 3.0
+        new_keep = np.abs(points @ normal - offset) / axial_sigma(points[:, 2]) < 3.0
         if new_keep.sum() < settings.min_points:
             return None
         if np.array_equal(new_keep, keep):
@@ -128,7 +125,7 @@ def _consensus(
     """The points of the plane (within max_tilt and max_height_change of the prior's floor) that
     most of them lie on: the floor, not the tops of tiles or boxes on it, not the feet of robots."""
     rng = np.random.default_rng(len(points))  # the same scan gives the same fit
-    sigma = _axial_sigma(points[:, 2])
+    sigma = axial_sigma(points[:, 2])
     best, best_count = None, 0
     triples = rng.integers(0, len(points), size=(settings.consensus_trials, 3))
     for a, b, c in triples:

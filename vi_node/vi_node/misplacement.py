@@ -6,8 +6,10 @@ within a few centimetres). A tile whose points are, in a good share, farther fro
 the sensor noise allows is refitted on its own: a planar rigid motion (x, y and a turn about its
 vertical axis, the way a tile slips when placed) that puts its points back onto its expected faces.
 If that motion is large enough (default: 1 cm or 8 degrees) and explains the points much better,
-the tile is flagged, with the motion as its offset. The per-tile residual (RMS distance of its
-points to its faces) is reported for every tile.
+the tile is flagged, with the motion as its offset, unless the motion is smaller than the camera
+resolves at the tile's depth (`depth_noise`: 1.2 cm at 2 m, 2.7 cm at 3 m); then it is "unresolved",
+neither misplaced nor shown in place. The per-tile residual (RMS distance of its points to its faces)
+is reported for every tile.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from numpy.typing import NDArray
 
 from tiling_assembly.contacts import separation
 from tiling_assembly.geometry import PlacedTile, rotation_from_rpy
+from vi_node.depth_noise import resolved_motion
 from vi_node.patches import PlanarPatches, Projection
 
 Array = NDArray[np.float64]
@@ -44,6 +47,7 @@ class MisplacementSettings:
     kept_share: float = 0.1  # a tile that slipped still covers part of its place: this share of its pixels agree
     other_shape_share: float = 0.3  # not its shape: at least this share of its decisive pixels agree, and
     other_shape_pixels: int = 30  # ... this share see through it, of at least this many decisive pixels
+    shape_resolution: float = 0.02  # m, ... where the camera resolves this (`depth_noise`; 2.6 m deep)
     sticking_out: float = 0.015  # m off its faces: a point of the tile's own that its planned shape does not explain
     sticking_out_share: float = 0.25  # something else lies there when this share of its points stick out ...
     sticking_out_points: int = 20  # ... and at least this many
@@ -74,6 +78,8 @@ class TileFit:
     median_before: float = 0.0  # m, median distance of the refitted points to the tile where it should be
     sigmas: tuple[float, float] = (0.0, 0.0)  # significance of the fitted shift and turn
     sticking_out: int = 0  # its points off its faces by more than `sticking_out`, unexplained by a refit
+    unresolved: bool = False  # a motion fitted, but smaller than the camera resolves at the tile's depth
+    resolution: float = 0.0  # m, the smallest motion the camera resolves at the depth of its points
 
 
 @dataclass(frozen=True)
@@ -132,14 +138,16 @@ def confirmed_by_pixels(
     return disagree >= needed
 
 
-def other_shape(agree: int, against: int, settings: MisplacementSettings) -> bool:
+def other_shape(agree: int, against: int, settings: MisplacementSettings, resolution: float = 0.0) -> bool:
     """Whether a tile's place holds something of another shape (a tile of the wrong type; beyond
     the paper, its future work): a good share of its pixels find its surface where expected, and a
     good share see through where the planned tile would be, which no motion of the planned tile
     explains. A tile in place has its pixels agree almost everywhere, a missing one almost nowhere;
-    either at the edges of a view can split its pixels, but not both halves at once on this many."""
+    either at the edges of a view can split its pixels, but not both halves at once on this many.
+    Not where the camera resolves no less than `shape_resolution` (`resolution`, m): 3.3 m off, the
+    pixels of a 5 cm block in place split so at its edges."""
     decisive = agree + against
-    if decisive < settings.other_shape_pixels:
+    if decisive < settings.other_shape_pixels or resolution > settings.shape_resolution:
         return False
     share = settings.other_shape_share * decisive
     return agree >= share and against >= share
@@ -173,7 +181,7 @@ def _sticking_out(
     tile = np.minimum(owner, len(patches) - 1)
     z = scan.points[:, 2]
     level = (z >= patches.tile_low[tile, 2] - 0.005) & (z <= patches.tile_high[tile, 2] + 0.005)
-    out = (owners.distance > settings.sticking_out) & level & ~explained
+    out = (owners.distance > _off_faces(scan, settings)) & level & ~explained
     own = np.bincount(owner[out], minlength=len(patches) + 1)[:-1]
     return own + _reaching_over(scan, patches, explained, settings)
 
@@ -189,7 +197,7 @@ def _reaching_over(
     point beside several tiles counts for the smallest of them."""
     count = len(patches)
     gap = scan.points - scan.closest
-    clear = (np.einsum("ij,ij->i", gap, gap) > settings.sticking_out**2) & ~claimed
+    clear = (np.einsum("ij,ij->i", gap, gap) > _off_faces(scan, settings) ** 2) & ~claimed
     if count == 0 or not clear.any():
         return np.zeros(count, dtype=np.int64)
     points = scan.points[clear]
@@ -211,6 +219,12 @@ def _reaching_over(
     smallest = np.argmin(np.where(within, area[None, :], np.inf), axis=1)
     held = within.any(axis=1)
     return np.bincount(smallest[held], minlength=count)
+
+
+def _off_faces(scan: ScanPoints, settings: MisplacementSettings) -> Array:
+    """Per point: how far (m) off every expected face it must lie to stick out, `sticking_out`, or
+    more where the depth noise is larger (3 m off, a disparity step is 2.6 cm)."""
+    return np.maximum(settings.sticking_out, resolved_motion(scan.depth))
 
 
 def _tops(points: Array, radius: float = 0.01, rise: float = 0.01) -> NDArray[np.bool_]:
@@ -310,17 +324,25 @@ def _judge_tile(
     # a first step as large as a flag is reason enough where no pixel disagrees: a triangle turned 29
     # degrees, seen at grazing incidence, agreed on all its 82 pixels and was called present
     possible = bool(context.disturbed[index]) or _step_reaches(step, 1.0, settings)
-    unmoved = TileFit(points=count, residual=rms, judged=judged, misplaced=False, residual_after=rms, first_step=step)
+    own = owners.order[owners.bounds[index] : owners.bounds[index + 1]]
+    resolution = float(resolved_motion(np.median(scan.depth[own]))) if len(own) else math.inf
+    unmoved = TileFit(points=count, residual=rms, judged=judged, misplaced=False, residual_after=rms, first_step=step,
+                      resolution=resolution)
     if not (judged and possible and (hint or index in context.suspects)):
         return unmoved
-    mine = owners.order[owners.bounds[index] : owners.bounds[index + 1]]
-    mine = mine[~claimed[mine]]
+    mine = own[~claimed[own]]
     if len(mine) < settings.min_points:
         return replace(unmoved, judged=False)
     refit = _fit_tile(scan.points, scan.nearest_tile, owners.distance, mine, claimed, index, context, settings)
     offset = refit.offset
-    shifted = math.hypot(offset[0], offset[1]) >= settings.shift and refit.shift_sigmas >= settings.significance
+    shift, corner_motion = math.hypot(offset[0], offset[1]), _corner_reach(context.tiles[index]) * abs(offset[2])
+    shifted = shift >= settings.shift and refit.shift_sigmas >= settings.significance
     turned = abs(offset[2]) >= settings.turn and refit.turn_sigmas >= settings.turn_significance
+    # beyond 2.6 m the camera resolves no motion under 2 cm: there a fitted motion within the noise is
+    # no motion (an arcade's pier block 3 m off, in place, fitted 1.9 cm), though no proof of none either
+    resolved_shift, resolved_turn = shifted and shift >= resolution, turned and corner_motion >= resolution
+    unresolved = (shifted or turned) and not (resolved_shift or resolved_turn)
+    shifted, turned = resolved_shift, resolved_turn
     # a fit that ran off (further than a tile slips when placed) explains nothing
     believable = math.hypot(offset[0], offset[1]) <= settings.max_shift and abs(offset[2]) <= settings.max_turn
     if not turned:  # a turn within the noise is no part of the motion (it could push the tile into a neighbour)
@@ -343,7 +365,15 @@ def _judge_tile(
         first_step=step,
         median_before=refit.before,
         sigmas=(refit.shift_sigmas, refit.turn_sigmas),
+        unresolved=unresolved,
+        resolution=resolution,
     )
+
+
+def _corner_reach(tile: PlacedTile) -> float:
+    """How far (m) the farthest corner of a tile's footprint lies from its centre: a turn moves it most."""
+    corners = tile.vertices[:, :2] - tile.centroid[:2]
+    return float(np.max(np.hypot(corners[:, 0], corners[:, 1])))
 
 
 def _step_reaches(step: Array, share: float, settings: MisplacementSettings) -> bool:

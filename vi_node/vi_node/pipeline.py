@@ -39,7 +39,7 @@ from vi_node.camera_model import OPTICAL_FROM_LINK, PinholeCamera
 from vi_node.candidates import Candidates, at_structure_range, select_candidates
 from vi_node.classify import TileState, paper_support
 from vi_node.coarse_alignment import CoarseAligner, CoarseSettings
-from vi_node.evidence import TileEvidence, decide, judgeable, pixel_evidence, smooth, unexpected
+from vi_node.evidence import TileEvidence, decide, judgeable, pixel_evidence, smooth, too_deep, unexpected
 from vi_node.expected_returns import expect_returns
 from vi_node.floor import FloorFit, FloorSettings, correct_pose, fit_floor
 from vi_node.icp import Correspondences, IcpResult, IcpSettings, point_to_plane_icp
@@ -501,7 +501,7 @@ class InspectionPipeline:
             self._classify_paper(placed, virtual, pose, result)
             scan.timer.lap("classify")
         else:
-            self._classify_by_evidence(evidence, result)
+            self._classify_by_evidence(evidence, result, pose)
             scan.timer.lap("classify")
             assert nearest is not None
             self._judge_placement(nearest[0], pose, result, suspects, scan)
@@ -671,8 +671,11 @@ class InspectionPipeline:
             for k, tile_id in enumerate(self.model.tile_ids)
         ]
 
-    def _classify_by_evidence(self, evidence: TileEvidence, result: ScanResult) -> None:
-        """Decide every tile from its pixel evidence, relative to what the virtual scan predicts for it."""
+    def _classify_by_evidence(self, evidence: TileEvidence, result: ScanResult, pose: Array) -> None:
+        """Decide every tile from its pixel evidence, relative to what the virtual scan predicts for it
+        (nothing against the tiles too deep in the camera's view to tell them gone, `too_deep`)."""
+        depth = (self.model.patches.tile_centroid - pose[:3, 3]) @ pose[:3, 2]
+        evidence = evidence.unopposed(too_deep(depth, self.evidence_settings))
         states = decide(evidence, self.evidence_settings)
         result.evidence, result.evidence_states = evidence, states
         observed = np.maximum(evidence.observed, 1)
@@ -733,11 +736,12 @@ class InspectionPipeline:
             elif tile.state in (TileState.OCCLUDED, TileState.PRESENT) and (
                     something_else_there(fit, self.misplacement_settings)
                     or (tile.state is TileState.OCCLUDED and other_shape(
-                        tile.physical, tile.see_through + tile.blank, self.misplacement_settings))):
+                        tile.physical, tile.see_through + tile.blank, self.misplacement_settings, fit.resolution))):
                 tile.state, tile.offset = TileState.MISPLACED, (0.0, 0.0, 0.0)
                 result.misplacement[tile.tile_id] = (True, tile.offset, fit.residual)
-            elif tile.state is TileState.PRESENT and fit.misplaced:
-                # its points moved, its pixels cannot tell: no verdict rather than "present and in place"
+            elif tile.state is TileState.PRESENT and (fit.misplaced or fit.unresolved):
+                # its points moved (or within the noise), its pixels cannot tell: no verdict rather
+                # than "present and in place"
                 tile.state = TileState.OCCLUDED
         for index in self._disturbed_tiles(result, blank=True):
             tile = result.tiles[index]
