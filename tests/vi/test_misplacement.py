@@ -314,6 +314,28 @@ def test_a_motion_within_the_depth_noise_is_no_misplacement_and_no_proof_of_none
     assert fits[3.0].resolution > 0.02 > 0.005 > fits[1.0].resolution
 
 
+def test_a_turn_must_move_the_corners_twice_as_far_as_the_camera_resolves() -> None:
+    """Disparity steps across the 5 cm faces of a pier block 2 m off fit as turns of 15-42 degrees
+    (an 8-robot arcade repaired a block in place 'turned -27 degrees'). A block turned 20 degrees
+    moves its corners 1.2 cm: flagged a metre off; 2 m off, where 1.2 cm is resolved, unresolved."""
+    block = PlacedTile(1, "block", _box_type(0.05, 0.05, 0.05), np.eye(3), np.array([0.0, 0.0, 0.0]))
+    turned = moved_tile(block, (0.0, 0.0, math.radians(20.0)))
+    across = np.linspace(-0.022, 0.022, 9)
+    local = np.vstack([np.array([[x, y, 0.05] for x in across for y in across]),
+                       np.array([[x, -0.025, z] for x in across for z in np.linspace(0.004, 0.046, 9)]),
+                       np.array([[0.025, y, z] for y in across for z in np.linspace(0.004, 0.046, 9)])])
+    points = local @ turned.rotation.T + turned.position
+    patches, scene = PlanarPatches([block]), VirtualScene([block])
+    closest, normal, tile = scene.closest_points(points)
+    context = PlacementContext(patches=patches, camera_position=np.array([0.6, -1.0, 0.6]), tiles=[block],
+                               surfaces=scene, solid=[True], disturbed=[True])
+    fits = {depth: assess(ScanPoints(points, np.full(len(points), depth), tile, closest, normal), context,
+                          MisplacementSettings())[0] for depth in (1.0, 2.0)}
+    assert fits[1.0].misplaced and abs(math.degrees(fits[1.0].offset[2]) - 20.0) < 3.0
+    assert not fits[2.0].misplaced and fits[2.0].unresolved
+    assert 0.011 < fits[2.0].resolution < 0.013  # the corners moved 1.2 cm: resolved once, not twice
+
+
 def _box_type(length: float, width: float, height: float) -> object:
     hx, hy = length / 2, width / 2
     return prism_shape(np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]), height)

@@ -44,6 +44,7 @@ class MisplacementSettings:
     max_turn: float = math.radians(45.0)  # rad, ... (a run-off fit, not a misplaced tile)
     significance: float = 8.0  # a fitted shift must stand this many sigmas clear of zero ...
     turn_significance: float = 7.0  # ... and a fitted turn this many
+    turn_resolution: float = 2.0  # a turn moves the tile's corners this many times the motion resolved at its depth
     kept_share: float = 0.1  # a tile that slipped still covers part of its place: this share of its pixels agree
     other_shape_share: float = 0.3  # not its shape: at least this share of its decisive pixels agree, and
     other_shape_pixels: int = 30  # ... this share see through it, of at least this many decisive pixels
@@ -340,7 +341,10 @@ def _judge_tile(
     turned = abs(offset[2]) >= settings.turn and refit.turn_sigmas >= settings.turn_significance
     # beyond 2.6 m the camera resolves no motion under 2 cm: there a fitted motion within the noise is
     # no motion (an arcade's pier block 3 m off, in place, fitted 1.9 cm), though no proof of none either
-    resolved_shift, resolved_turn = shifted and shift >= resolution, turned and corner_motion >= resolution
+    # and a turn must move the corners further: across a 5 cm face 2 m off, disparity steps of 1.1 cm
+    # make a staircase that fits as a turn (pier blocks in place fitted turned 15-42 degrees)
+    resolved_shift = shifted and shift >= resolution
+    resolved_turn = turned and corner_motion >= settings.turn_resolution * resolution
     unresolved = (shifted or turned) and not (resolved_shift or resolved_turn)
     shifted, turned = resolved_shift, resolved_turn
     # a fit that ran off (further than a tile slips when placed) explains nothing
