@@ -278,11 +278,7 @@ def test_a_first_step_as_large_as_a_flag_is_refitted_even_where_no_pixel_disagre
     when that step is as large as a flag (the pixels then decide whether it is believed)."""
     block = PlacedTile(1, "block", _box_type(0.05, 0.05, 0.05), np.eye(3), np.array([0.0, 0.0, 0.0]))
     turned = moved_tile(block, (0.0, 0.0, math.radians(25.0)))
-    across = np.linspace(-0.022, 0.022, 9)
-    local = np.vstack([np.array([[x, y, 0.05] for x in across for y in across]),
-                       np.array([[x, -0.025, z] for x in across for z in np.linspace(0.004, 0.046, 9)]),
-                       np.array([[0.025, y, z] for y in across for z in np.linspace(0.004, 0.046, 9)])])
-    points = local @ turned.rotation.T + turned.position
+    points = _seen_faces(turned)
     patches, scene = PlanarPatches([block]), VirtualScene([block])
     closest, normal, tile = scene.closest_points(points)
     scan = ScanPoints(points, np.ones(len(points)), tile, closest, normal)
@@ -296,19 +292,7 @@ def test_a_motion_within_the_depth_noise_is_no_misplacement_and_no_proof_of_none
     """An 8-robot arcade flagged pier blocks in place 2.7-3.3 m off as shifted 1.8-1.9 cm; a
     disparity step is 2.6 cm there. The same points a metre off flag the block; 3 m off the fit is
     "unresolved": not misplaced, and not in place either."""
-    block = PlacedTile(1, "block", _box_type(0.05, 0.05, 0.05), np.eye(3), np.array([0.0, 0.0, 0.0]))
-    shifted = moved_tile(block, (0.0, 0.018, 0.0))
-    across = np.linspace(-0.022, 0.022, 9)
-    local = np.vstack([np.array([[x, y, 0.05] for x in across for y in across]),
-                       np.array([[x, -0.025, z] for x in across for z in np.linspace(0.004, 0.046, 9)]),
-                       np.array([[0.025, y, z] for y in across for z in np.linspace(0.004, 0.046, 9)])])
-    points = local + shifted.position
-    patches, scene = PlanarPatches([block]), VirtualScene([block])
-    closest, normal, tile = scene.closest_points(points)
-    context = PlacementContext(patches=patches, camera_position=np.array([0.6, -1.0, 0.6]), tiles=[block],
-                               surfaces=scene, solid=[True], disturbed=[True])
-    fits = {depth: assess(ScanPoints(points, np.full(len(points), depth), tile, closest, normal), context,
-                          MisplacementSettings())[0] for depth in (1.0, 3.0)}
+    fits = _block_fits_at_depths((0.0, 0.018, 0.0), (1.0, 3.0))
     assert fits[1.0].misplaced and abs(fits[1.0].offset[1] - 0.018) < 0.003 and not fits[1.0].unresolved
     assert not fits[3.0].misplaced and fits[3.0].unresolved
     assert fits[3.0].resolution > 0.02 > 0.005 > fits[1.0].resolution
@@ -318,22 +302,32 @@ def test_a_turn_must_move_the_corners_twice_as_far_as_the_camera_resolves() -> N
     """Disparity steps across the 5 cm faces of a pier block 2 m off fit as turns of 15-42 degrees
     (an 8-robot arcade repaired a block in place 'turned -27 degrees'). A block turned 20 degrees
     moves its corners 1.2 cm: flagged a metre off; 2 m off, where 1.2 cm is resolved, unresolved."""
+    fits = _block_fits_at_depths((0.0, 0.0, math.radians(20.0)), (1.0, 2.0))
+    assert fits[1.0].misplaced and abs(math.degrees(fits[1.0].offset[2]) - 20.0) < 3.0
+    assert not fits[2.0].misplaced and fits[2.0].unresolved
+    assert 0.011 < fits[2.0].resolution < 0.013  # the corners moved 1.2 cm: resolved once, not twice
+
+
+def _block_fits_at_depths(offset: tuple[float, float, float], depths: tuple[float, ...]) -> dict[float, TileFit]:
+    """The fit of a 5 cm block moved by `offset`, its seen faces' points measured at each of `depths`."""
     block = PlacedTile(1, "block", _box_type(0.05, 0.05, 0.05), np.eye(3), np.array([0.0, 0.0, 0.0]))
-    turned = moved_tile(block, (0.0, 0.0, math.radians(20.0)))
-    across = np.linspace(-0.022, 0.022, 9)
-    local = np.vstack([np.array([[x, y, 0.05] for x in across for y in across]),
-                       np.array([[x, -0.025, z] for x in across for z in np.linspace(0.004, 0.046, 9)]),
-                       np.array([[0.025, y, z] for y in across for z in np.linspace(0.004, 0.046, 9)])])
-    points = local @ turned.rotation.T + turned.position
+    points = _seen_faces(moved_tile(block, offset))
     patches, scene = PlanarPatches([block]), VirtualScene([block])
     closest, normal, tile = scene.closest_points(points)
     context = PlacementContext(patches=patches, camera_position=np.array([0.6, -1.0, 0.6]), tiles=[block],
                                surfaces=scene, solid=[True], disturbed=[True])
-    fits = {depth: assess(ScanPoints(points, np.full(len(points), depth), tile, closest, normal), context,
-                          MisplacementSettings())[0] for depth in (1.0, 2.0)}
-    assert fits[1.0].misplaced and abs(math.degrees(fits[1.0].offset[2]) - 20.0) < 3.0
-    assert not fits[2.0].misplaced and fits[2.0].unresolved
-    assert 0.011 < fits[2.0].resolution < 0.013  # the corners moved 1.2 cm: resolved once, not twice
+    return {depth: assess(ScanPoints(points, np.full(len(points), depth), tile, closest, normal), context,
+                          MisplacementSettings())[0] for depth in depths}
+
+
+def _seen_faces(block: PlacedTile) -> np.ndarray:
+    """Points on the top, -y and +x faces of a 5 cm block as it lies (what a camera off its corner sees)."""
+    across = np.linspace(-0.022, 0.022, 9)
+    up = np.linspace(0.004, 0.046, 9)
+    local = np.vstack([np.array([[x, y, 0.05] for x in across for y in across]),
+                       np.array([[x, -0.025, z] for x in across for z in up]),
+                       np.array([[0.025, y, z] for y in across for z in up])])
+    return local @ block.rotation.T + block.position
 
 
 def _box_type(length: float, width: float, height: float) -> object:
