@@ -35,7 +35,7 @@ from std_msgs.msg import String
 from auction_node.auction import AuctionBook, Award
 from auction_node.delivery import AnnouncementRepeater, AwardDelivery
 from auction_node.liveness import Liveness
-from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, Misfit, MismatchDetector, UnconfirmedReports
 from tiling_assembly.messages import pose_of, structure_from_msg
 from tiling_assembly.repair import plan_repair
 from tiling_assembly.scan_freshness import RepeatFilter
@@ -77,6 +77,10 @@ class AuctionSettings:
     confirmations: int = setting(2, "Scans that must call a placed tile missing, none present between (paper: 1).")
     confirmation_view_change: float = setting(
         0.15, "m between the camera positions of two scans confirming a missing tile (0: any scans).")
+    misplaced_agreement_shift: float = setting(
+        0.02, "m: scans confirming a misplaced tile must find it moved this alike (and of the same wrong type).")
+    misplaced_agreement_turn: float = setting(
+        10.0, "deg: scans confirming a misplaced tile must find it turned this alike.")
     bid_window: float = setting(2.0, "s (node clock) from an announcement to its deadline.")
     liveness_timeout: float = setting(1.5, "s of wall-clock time without a heartbeat before a robot is lost.")
     acceptance_timeout: float = setting(
@@ -104,6 +108,8 @@ class AuctionNode(Node):
         self.detector = MismatchDetector(
             confirmations=int(settings.confirmations),
             min_view_change=float(settings.confirmation_view_change),
+            misfit_shift=float(settings.misplaced_agreement_shift),
+            misfit_turn=math.radians(float(settings.misplaced_agreement_turn)),
         )
         self.book = AuctionBook(bid_window=float(settings.bid_window))
         self.liveness = Liveness(timeout=float(settings.liveness_timeout))
@@ -124,6 +130,8 @@ class AuctionNode(Node):
             raise ValueError("bid_window and liveness_timeout must be positive")
         if self.detector.confirmations < 1 or self.detector.min_view_change < 0:
             raise ValueError("confirmations must be at least 1 and confirmation_view_change not negative")
+        if self.detector.misfit_shift < 0 or self.detector.misfit_turn < 0:
+            raise ValueError("misplaced_agreement_shift and misplaced_agreement_turn must not be negative")
 
         self.repeats = RepeatFilter()
         self.structure: StructureModel | None = None
@@ -276,7 +284,7 @@ class AuctionNode(Node):
             self.decide(f"tile {tile_id} was placed but the scan says missing (q * q^s = -1)")
             self.announce(tile_id, AuctionAnnouncement.REASON_MISSING)
         self.tell_deferred({t for t, value in sensing.items() if value == MISSING})
-        verdicts = {s.tile_id: s.state == TileState.MISPLACED for s in msg.states
+        verdicts = {s.tile_id: misfit(s) if s.state == TileState.MISPLACED else False for s in msg.states
                     if s.tile_id in fresh and s.state in (TileState.PRESENT, TileState.MISPLACED)}
         offsets = {s.tile_id: s for s in msg.states}
         flagged = self.detector.flagged(verdicts, at, view)
@@ -454,6 +462,11 @@ class AuctionNode(Node):
                 self.announce(tile_id, AuctionAnnouncement.REASON_ROBOT_LOST)
 
         future.add_done_callback(done)
+
+
+def misfit(found: TileState) -> Misfit:
+    """How a scan found a misplaced tile lying."""
+    return Misfit(found.offset_x, found.offset_y, found.offset_yaw, found.seen_type)
 
 
 def how_it_lies(found: TileState) -> str:

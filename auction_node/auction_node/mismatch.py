@@ -21,7 +21,10 @@ second sensor: that support is missing too, without waiting for the VI robot to 
 Beyond the paper too (its future work): a placed tile that scans call MISPLACED (seen, but off its
 planned pose, or of another shape) is confirmed as a missing one is, by `confirmations` scans from
 camera positions `min_view_change` apart with no present verdict between them (`flagged`), and then
-goes to repair.
+goes to repair. The confirming scans must also agree on how it lies (`Misfit.agrees_with`): a tile
+really off its pose is off by the same motion from every side, or holds the same wrong type, while a
+fit to noise moves with the view (a pier block in place 3 m off, fitted "shifted 2.5 cm" from one
+camera position and otherwise from another, was taken off and put back where it was).
 
 A tile with a wrong tile on it (resting on it, directly or through others) cannot be judged: the
 wrong tile's faces, where the plan has none, look like its own moved or gone (a long rectangle's
@@ -38,6 +41,37 @@ from dataclasses import dataclass, field
 
 View = tuple[float, float]  # x, y (m) of the camera in the structure's frame
 
+
+@dataclass(frozen=True)
+class Misfit:
+    """How one scan found a placed tile lying wrong: its motion from the planned pose (x, y in m, yaw
+    in rad), or the type seen in its place."""
+
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+    seen_type: str = ""
+
+    @property
+    def specific(self) -> bool:
+        """Whether the scan told how the tile lies (a motion or a type)."""
+        return bool(self.seen_type) or (self.x, self.y, self.yaw) != (0.0, 0.0, 0.0)
+
+    def agrees_with(self, other: Misfit, shift: float, turn: float) -> bool:
+        """Whether two scans saw the same fault: the same wrong type, or motions within `shift` (m)
+        and `turn` (rad) of each other. A scan that found the tile off its faces but neither a motion
+        nor a type that explains it (a wrong type, seen from where its shape is not told apart) says
+        nothing of how it lies and agrees with any."""
+        if not (self.specific and other.specific):
+            return True
+        if self.seen_type or other.seen_type:
+            return self.seen_type == other.seen_type
+        turned = math.remainder(self.yaw - other.yaw, 2 * math.pi)
+        return math.hypot(self.x - other.x, self.y - other.y) <= shift and abs(turned) <= turn
+
+
+Sighting = tuple[View | None, Misfit | None]  # a camera position, and what it saw (None: not told)
+
 PRESENT = 1
 UNDETERMINED = 0
 MISSING = -1
@@ -49,10 +83,12 @@ class MismatchDetector:
 
     confirmations: int = 1
     min_view_change: float = 0.0  # m between the camera positions of two confirming scans
+    misfit_shift: float = 0.02  # m, two scans calling a tile misplaced agree when their motions are this close ...
+    misfit_turn: float = math.radians(10.0)  # rad, ... and their turns
     q: dict[int, int] = field(default_factory=dict)
     q_sensed: dict[int, int] = field(default_factory=dict)
     missing_streak: dict[int, list[View | None]] = field(default_factory=dict)  # views that called it missing
-    misplaced_streak: dict[int, list[View | None]] = field(default_factory=dict)  # views that called it misplaced
+    misplaced_streak: dict[int, list[Sighting]] = field(default_factory=dict)  # scans that called it misplaced
     placed_at: dict[int, float] = field(default_factory=dict)  # s, time of the latest placement
     above: Mapping[int, frozenset[int]] = field(default_factory=dict)  # tile -> the tiles resting on it, all
     lying_wrong: set[int] = field(default_factory=set)  # confirmed lying wrong, still on the structure
@@ -95,9 +131,11 @@ class MismatchDetector:
         self.missing_streak.pop(tile_id, None)
         self.misplaced_streak.pop(tile_id, None)
 
-    def flagged(self, verdicts: Mapping[int, bool], at: float = math.inf, view: View | None = None) -> list[int]:
-        """Take a scan's verdicts on placed tiles (tile id -> True: misplaced, False: present) taken at
-        `at` from `view`; other verdicts are left out (they neither confirm nor clear).
+    def flagged(self, verdicts: Mapping[int, bool | Misfit], at: float = math.inf,
+                view: View | None = None) -> list[int]:
+        """Take a scan's verdicts on placed tiles (tile id -> False: present; True or how it lies:
+        misplaced) taken at `at` from `view`; other verdicts are left out (they neither confirm nor
+        clear). A verdict of True agrees with any other.
 
         Returns the tiles now confirmed lying wrong; they are no longer placed (q_i = 0) until a robot
         reports them placed again.
@@ -110,9 +148,9 @@ class MismatchDetector:
                 continue
             if self._defer(tile_id):
                 continue
-            if not misplaced:
+            if misplaced is False:
                 self.misplaced_streak.pop(tile_id, None)
-            elif self._confirmed(self.misplaced_streak, tile_id, view):
+            elif self._misplacement_confirmed(tile_id, view, misplaced if isinstance(misplaced, Misfit) else None):
                 self.lies_wrong(tile_id)
                 found.append(tile_id)
         return sorted(found)
@@ -156,6 +194,26 @@ class MismatchDetector:
             return False
         self.unplaced(tile_id)
         return True
+
+    def _misplacement_confirmed(self, tile_id: int, view: View | None, misfit: Misfit | None) -> bool:
+        """Add the sighting to the tile's streak; True (and the tile no longer placed) once
+        `confirmations` sightings from distinct camera positions, this one among them, agree."""
+        sightings = self.misplaced_streak.setdefault(tile_id, [])
+        agreeing = [(view, misfit)]
+        for seen_from, seen in reversed(sightings):
+            if self._new_view([v for v, _ in agreeing], seen_from) and self._agree(seen, misfit):
+                agreeing.append((seen_from, seen))
+        if self._new_view([v for v, _ in sightings], view):
+            sightings.append((view, misfit))
+        if len(agreeing) < self.confirmations:
+            return False
+        self.unplaced(tile_id)
+        return True
+
+    def _agree(self, first: Misfit | None, second: Misfit | None) -> bool:
+        if first is None or second is None:
+            return True
+        return first.agrees_with(second, self.misfit_shift, self.misfit_turn)
 
     def _new_view(self, views: list[View | None], view: View | None) -> bool:
         if view is None or self.min_view_change <= 0:

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 from auction_node.liveness import Liveness
-from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, MismatchDetector, UnconfirmedReports
+from auction_node.mismatch import MISSING, PRESENT, UNDETERMINED, Misfit, MismatchDetector, UnconfirmedReports
 from tiling_assembly.scan_freshness import RepeatFilter
 
 
@@ -133,6 +134,34 @@ def test_a_tile_lying_wrong_is_confirmed_from_two_standpoints_with_no_present_ve
     assert detector.flagged({4: True}, at=25.0, view=(0.0, -1.0)) == []
     detector.placed(4, at=30.0)
     assert detector.flagged({4: True}, at=31.0, view=(0.0, -1.0)) == []  # the old streak is forgotten
+
+
+def test_scans_confirm_a_misplaced_tile_only_when_they_agree_on_how_it_lies() -> None:
+    """A pier block in place 3 m off was fitted 'shifted 2.5 cm' from two camera positions, each its own
+    way: a fit to noise moves with the view, a tile really off is off alike from every side."""
+    detector = MismatchDetector(confirmations=2, min_view_change=0.15, misfit_shift=0.02,
+                                misfit_turn=math.radians(10.0))
+    detector.placed(7, at=0.0)
+    assert detector.flagged({7: Misfit(0.025, 0.0, 0.0)}, at=1.0, view=(1.0, 0.0)) == []
+    assert detector.flagged({7: Misfit(-0.01, 0.022, 0.0)}, at=2.0, view=(0.0, 1.0)) == []  # another motion
+    assert detector.flagged({7: Misfit(0.0, 0.0, math.radians(20))}, at=3.0, view=(0.0, -1.0)) == []  # a turn
+    assert detector.flagged({7: Misfit(0.0, 0.0, 0.0, "square")}, at=4.0, view=(-1.0, 0.0)) == []  # a type
+    assert detector.q[7] == 1
+    # the same motion (within 2 cm and 10 degrees) from a fifth standpoint confirms it
+    assert detector.flagged({7: Misfit(0.003, 0.028, math.radians(4))}, at=5.0, view=(2.0, 2.0)) == [7]
+    # a wrong type needs the same type twice; a turn is compared across the wrap-around
+    detector.placed(8, at=0.0)
+    assert detector.flagged({8: Misfit(seen_type="square")}, at=1.0, view=(1.0, 0.0)) == []
+    assert detector.flagged({8: Misfit(seen_type="triangle")}, at=2.0, view=(0.0, 1.0)) == []
+    assert detector.flagged({8: Misfit(seen_type="triangle")}, at=3.0, view=(0.0, -1.0)) == [8]
+    detector.placed(9, at=0.0)
+    assert detector.flagged({9: Misfit(0.0, 0.0, math.radians(179))}, at=1.0, view=(1.0, 0.0)) == []
+    assert detector.flagged({9: Misfit(0.0, 0.0, math.radians(-178))}, at=2.0, view=(0.0, 1.0)) == [9]
+    # a scan that found it off its faces but could not tell how it lies agrees with any (an octagon
+    # in a long rectangle's place fitted no motion from most views, 'octagon' from one)
+    detector.placed(10, at=0.0)
+    assert detector.flagged({10: Misfit()}, at=1.0, view=(1.0, 0.0)) == []
+    assert detector.flagged({10: Misfit(seen_type="octagon")}, at=2.0, view=(0.0, 1.0)) == [10]
 
 
 def test_a_tile_under_a_wrong_one_is_judged_only_once_that_one_is_repaired() -> None:
