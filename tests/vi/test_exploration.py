@@ -102,3 +102,19 @@ def test_ring_viewpoints_face_the_structure() -> None:
         bearing = math.atan2(centre[1] - y, centre[0] - x)
         assert abs(math.remainder(yaw - bearing, 2 * math.pi)) < 1e-9
     assert nearest(poses, (centre[0] + 1.0, centre[1], 0.0)) == 0
+
+
+def test_a_place_whose_scan_left_a_tile_undetermined_is_not_counted_on_to_resolve_it_for_a_while() -> None:
+    """An octagon placed instead of a triangle hid two tiles under it from the one place the ray
+    traced S_a predicted them seen: the explorer looked from there 240 times."""
+    exploration = Exploration(WEIGHTS, blind_memory=60.0, blind_radius=0.3)
+    exploration.expect([3, 9, 5])
+    priority = {3: 2.0, 9: 2.0, 5: 1.0}
+    there, elsewhere = (-1.11, -0.46, 0.4), (1.0, 0.5, 3.5)
+    assert exploration.gain(there, (3, 9, 5), priority, now=0.0) == pytest.approx(5.0)
+    exploration.judged({3: OCCLUDED, 9: OCCLUDED, 5: PRESENT}, now=10.0, view=(-1.02, -0.42))  # camera ahead of base
+    assert exploration.gain(there, (3, 9, 5), priority, now=11.0) == pytest.approx(1.0)
+    assert exploration.gain(elsewhere, (3, 9), priority, now=11.0) == pytest.approx(4.0)
+    assert exploration.gain(there, (3, 9, 5), priority, now=71.0) == pytest.approx(5.0)  # forgotten after 60 s
+    exploration.judged({3: OCCLUDED}, now=80.0)  # where the camera stood unknown: nothing to avoid
+    assert exploration.gain(there, (3,), priority, now=81.0) == pytest.approx(2.0)

@@ -25,12 +25,18 @@ different places at different tiles, yet all of them can go where the building h
 split of the ring would idle the robot whose sector is finished), and a tile one robot called
 missing is still worth a look from a second robot elsewhere (the auction node confirms from two
 camera positions). A claim that is never renewed (its robot died) lapses.
+
+The ray traced view predicts S_a only: a tile a scan left undetermined where the prediction resolved
+it is hidden by something unexpected (a wrong tile lying on the structure, a robot standing still)
+that will hide it again. For `blind_memory` s that place is not counted on to resolve that tile
+(`gain`): a VI robot otherwise looked 240 times from one place at two tiles an octagon, placed
+instead of a triangle above them, hid from there, and never saw the octagon from elsewhere.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Iterable, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,7 +89,10 @@ class Exploration:
     failure_memory: float = 30.0  # s a viewpoint whose scans did not align is avoided
     claim_clearance: float = 0.5  # m: a viewpoint this near one another VI robot claimed is left to it
     shared_weight: float = 0.25  # share of its priority a tile keeps that another robot's claimed view resolves
+    blind_memory: float = 60.0  # s a place whose scan left a tile undetermined is not counted on to resolve it ...
+    blind_radius: float = 0.3  # m ... nor any place this near it
     tiles: dict[int, TileKnowledge] = field(default_factory=dict)
+    left_undetermined: dict[int, list[tuple[float, float, float]]] = field(default_factory=dict)  # tile -> x, y, s
     failed: dict[int, float] = field(default_factory=dict)  # candidate index -> when it failed
     next_supports: frozenset[int] = frozenset()  # tiles the robots' next placements rest on
 
@@ -112,13 +121,26 @@ class Exploration:
         region, where a tile gone missing stops the build (a robot finds it before a scan did)."""
         self.next_supports = frozenset(supports)
 
-    def judged(self, states: dict[int, str], now: float) -> None:
-        """A scan looked at these tiles (only those it saw: not the repeats of a fused report)."""
+    def judged(self, states: dict[int, str], now: float, view: tuple[float, float] | None = None) -> None:
+        """A scan looked at these tiles (only those it saw: not the repeats of a fused report), from a
+        camera at `view` (x, y), if known."""
 
         for tile_id, state in states.items():
             if tile_id in self.tiles:
                 knowledge = self.tiles[tile_id]
                 knowledge.state, knowledge.judged_at = state, now
+            if view is not None and state in (OCCLUDED, UNKNOWN):
+                recent = [v for v in self.left_undetermined.get(tile_id, []) if now - v[2] < self.blind_memory]
+                self.left_undetermined[tile_id] = [*recent, (view[0], view[1], now)]
+
+    def gain(self, pose: Pose2, resolves: Iterable[int], priority: Mapping[int, float], now: float) -> float:
+        """The priority a viewpoint predicted to resolve the tiles `resolves` is worth: the tiles a scan
+        from near there left undetermined within `blind_memory` s aside."""
+        return sum(priority.get(t, 0.0) for t in resolves if not self._blind(t, pose, now))
+
+    def _blind(self, tile_id: int, pose: Pose2, now: float) -> bool:
+        return any(now - at < self.blind_memory and math.dist(pose[:2], (x, y)) < self.blind_radius
+                   for x, y, at in self.left_undetermined.get(tile_id, ()))
 
     def priority(self, now: float, left_to_others: Collection[int] = ()) -> dict[int, float]:
         """Weight of seeing each expected tile now; the tiles `left_to_others` (another VI robot's

@@ -241,8 +241,9 @@ class ExplorerNode(Node):
     def on_states(self, msg: TileStateArray) -> None:
         stamp = stamp_to_seconds(msg.header.stamp)
         seen = self.repeats.fresh_states(msg.states)
+        view = None if msg.problem else (msg.camera_pose.position.x, msg.camera_pose.position.y)
         self.exploration.judged({s.tile_id: STATES.get(s.state, UNKNOWN) for s in msg.states if s.tile_id in seen},
-                                stamp)
+                                stamp, view)
         if msg.robot_name and msg.robot_name != self.robot_name:
             return  # another VI robot's scan: what it saw counts, but this robot's wait goes on
         if self.arrived_at is not None and stamp >= self.arrived_at + self.settle:
@@ -286,9 +287,11 @@ class ExplorerNode(Node):
 
         # the claimer stands at its claim soon: only the structure hides its view there
         theirs = rank([OverheadPose(*c) for c in claimed], self.exploration.priority(now), None) if claimed else []
-        ranked = rank(poses, self.exploration.priority(now, left_to_others={t for r in theirs for t in r.resolves}),
-                      blocking)
-        gain_of = {(r.pose.x, r.pose.y, r.pose.yaw): r.score for r in ranked}
+        priority = self.exploration.priority(now, left_to_others={t for r in theirs for t in r.resolves})
+        ranked = rank(poses, priority, blocking)
+        gain_of = {(r.pose.x, r.pose.y, r.pose.yaw): self.exploration.gain((r.pose.x, r.pose.y, r.pose.yaw),
+                                                                            r.resolves, priority, now)
+                   for r in ranked}
         gains = [gain_of[(p.x, p.y, p.yaw)] for p in poses]
         neighbours = [(p.x, p.y, p.yaw) for p in self.team.latest(self.claims.robots())]
         index, score = self.exploration.choose(self.candidates, here, now, gains, claimed=claimed,
