@@ -121,6 +121,16 @@ def test_tiles_are_decided_relative_to_what_the_view_predicts(
     assert TileState(int(decide(evidence(agree, through, judged), SETTINGS)[0])) == state
 
 
+def test_a_sliver_left_between_robots_does_not_vouch_for_a_tile() -> None:
+    """Two robots by paper_14 hid all but 30 of the 598 pixels of triangle 14, where an octagon lay
+    instead: the octagon agreed with the triangle on 29 of them, and the triangle was called present."""
+    sliver = evidence(29, 0, 30)
+    sliver.judgeable[0] = 598
+    assert TileState(int(decide(sliver, SETTINGS)[0])) == TileState.OCCLUDED
+    sliver.judgeable[0] = 150  # a fifth of the tile seen, all of it agreeing: enough
+    assert TileState(int(decide(sliver, SETTINGS)[0])) == TileState.PRESENT
+
+
 def test_nothing_counts_against_a_tile_too_deep_in_the_view_to_tell_it_gone() -> None:
     """A pier block in place 2.9 m off saw past its face on 15 of its 19 decisive pixels: an
     alignment turned 0.7 degrees moves it 1.5 cm there, and a disparity step is 2.4 cm. Beyond 2.6 m

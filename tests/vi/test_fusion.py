@@ -28,6 +28,21 @@ def test_a_tile_undetermined_in_each_view_is_resolved_by_their_sum() -> None:
     assert fusion.tiles[7].scans == 2 and int(fusion.summed([7]).agree[0]) == 11
 
 
+def test_views_of_a_sliver_do_not_add_up_to_a_view_of_the_tile() -> None:
+    """33 scans from one place saw 30 of a triangle's 598 pixels past two robots, all agreeing with
+    the octagon lying there instead: summed, they looked like a clear view."""
+    fusion = TileFusion()
+    sliver = seen(29, 0, 30)
+    sliver.judgeable[0] = 598
+    for _ in range(33):
+        fusion.add([14], sliver, [O])
+    assert fusion.state_of(14) == TileState.OCCLUDED
+    clear = seen(200, 0, 220)
+    clear.judgeable[0] = 598
+    fusion.add([14], clear, [P])
+    assert fusion.state_of(14) == TileState.PRESENT
+
+
 def test_a_tile_seen_present_then_missing_is_missing() -> None:
     fusion = TileFusion()
     for _ in range(5):

@@ -51,6 +51,9 @@ class EvidenceSettings:
     min_observed_fraction: float = 0.15  # ... and this share of the pixels it should fill
     present_fraction: float = 0.7  # present when this share of the decisive pixels agree ...
     present_share: float = 0.3  # ... and they are this share of every pixel that saw its place
+    # ... and this share of every judgeable pixel of the tile agrees, those robots hide included: two
+    # robots by a structure hid an octagon lying in a triangle's place, which agreed on 29 of 598
+    present_view_share: float = 0.15
     missing_fraction: float = 0.6  # missing when this share of the decisive pixels are against it
     # m: no pixel counts against a tile where the camera resolves no better (`depth_noise`; 2.6 m
     # deep): there the alignment's least turn moves a tile's edges by as much (a pier block in
@@ -71,9 +74,10 @@ class TileEvidence:
     virtual: Counts  # v_i: every pixel the virtual scan gives the tile
     blank: Counts = field(default_factory=lambda: np.zeros(0, np.int64))  # blanks only "gone" explains
     ambiguous: Counts = field(default_factory=lambda: np.zeros(0, np.int64))  # both hypotheses explain
+    judgeable: Counts = field(default_factory=lambda: np.zeros(0, np.int64))  # judged or hidden by a robot
 
     def __post_init__(self) -> None:
-        for name in ("blank", "ambiguous"):
+        for name in ("blank", "ambiguous", "judgeable"):
             if len(getattr(self, name)) != len(self.agree):
                 setattr(self, name, np.zeros(len(self.agree), dtype=np.int64))
 
@@ -191,6 +195,7 @@ def pixel_evidence(
         return np.bincount(owner[mask[judged]], minlength=tile_count).astype(np.int64)
 
     counts.judged = count(free | behind)
+    counts.judgeable = count(judged)
     counts.agree = count(free & fits_there & ~fits_gone)
     counts.ambiguous = count(free & fits_there & fits_gone)
     counts.see_through = count(behind)
@@ -241,6 +246,12 @@ def too_deep(depth: NDArray[np.float64], settings: EvidenceSettings) -> NDArray[
     return resolved_motion(depth) > settings.against_resolution
 
 
+def shown(evidence: TileEvidence, settings: EvidenceSettings) -> Mask:
+    """Whether enough of each tile agrees to vouch for it, given how much of it the view would judge
+    were no robot in the way (a wrong tile agrees with the planned one where they overlap)."""
+    return evidence.agree >= settings.present_view_share * evidence.judgeable
+
+
 def decide(evidence: TileEvidence, settings: EvidenceSettings) -> NDArray[np.int64]:
     """PRESENT, MISSING or OCCLUDED (undetermined) per tile from its pixel evidence.
 
@@ -248,7 +259,7 @@ def decide(evidence: TileEvidence, settings: EvidenceSettings) -> NDArray[np.int
     (agree, see-through or blank: in-front, ambiguous and uninformative blank pixels say nothing
     about it); then the share of agreeing or opposing pixels decides. A present verdict also needs
     the agreeing pixels to be a fair share of every pixel that saw the tile's place (ambiguous
-    ones included).
+    ones included), and of every pixel that would have, were no robot in the way.
     """
     observed = evidence.observed
     enough = (observed >= settings.min_observed_pixels) & (
@@ -257,7 +268,7 @@ def decide(evidence: TileEvidence, settings: EvidenceSettings) -> NDArray[np.int
     agree = evidence.agree
     share_agree = agree / np.maximum(observed, 1)
     share_against = evidence.against / np.maximum(observed, 1)
-    clear = agree >= settings.present_share * (observed + evidence.ambiguous)
+    clear = (agree >= settings.present_share * (observed + evidence.ambiguous)) & shown(evidence, settings)
     state = np.full(len(observed), int(TileState.OCCLUDED), dtype=np.int64)
     state[enough & clear & (share_agree >= settings.present_fraction)] = TileState.PRESENT
     state[enough & (share_against >= settings.missing_fraction)] = TileState.MISSING

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from vi_node.classify import TileState
-from vi_node.evidence import EvidenceSettings, TileEvidence, decide
+from vi_node.evidence import EvidenceSettings, TileEvidence, decide, shown
 from vi_node.scan_result import ScanResult, TileResult
 
 RESOLVED = (TileState.PRESENT, TileState.MISSING)
@@ -48,8 +48,14 @@ class FusedTile:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # fitted x, y (m), yaw (rad) when misplaced
     residual: float = 0.0
     largest_view: int = 0  # most pixels of the tile judged in one scan
+    shown: bool = False  # one scan's agreeing pixels were a fair share of the tile's view (`evidence.shown`)
     flagged_counts: tuple[int, int, int] | None = None  # (agree, see-through, scans) reported when last flagged
     seen_type: str = ""  # when misplaced: the type that lies there instead, if a scan could tell
+
+    def saw(self, mine: TileEvidence, settings: EvidenceSettings) -> None:
+        """Note the size of one more scan's view of the tile."""
+        self.largest_view = max(self.largest_view, int(mine.judged[0]))
+        self.shown = self.shown or bool(shown(mine, settings)[0])
 
 
 @dataclass
@@ -92,7 +98,8 @@ class TileFusion:
             fused = self.tiles.get(tile_id)
             resolved = scan_state in RESOLVED
             if fused is None:
-                fused = FusedTile(mine, scan_state, largest_view=int(mine.judged[0]))
+                fused = FusedTile(mine, scan_state)
+                fused.saw(mine, self.settings)
             elif self.paper_rules:
                 fused.evidence = fused.evidence + mine
                 if resolved or fused.state not in RESOLVED:
@@ -103,10 +110,11 @@ class TileFusion:
                 # the tile changed: this scan counts alone; a missing tile does not come back by
                 # itself (a re-placed one starts afresh), so one view of it there waits for another
                 back = fused.state == TileState.MISSING and scan_state == TileState.PRESENT
-                fused = FusedTile(mine, TileState.OCCLUDED if back else scan_state, largest_view=int(mine.judged[0]))
+                fused = FusedTile(mine, TileState.OCCLUDED if back else scan_state)
+                fused.saw(mine, self.settings)
             else:
                 fused.evidence = fused.evidence + mine
-                fused.largest_view = max(fused.largest_view, int(mine.judged[0]))
+                fused.saw(mine, self.settings)
                 fused.state = self._decide(fused)
                 if fused.state == TileState.PRESENT and self._split(mine):
                     # older views must not vouch for a tile this view finds half gone: it may have just
@@ -147,8 +155,10 @@ class TileFusion:
     def _decide(self, fused: FusedTile) -> TileState:
         """The evidence summed over the views, with "enough of the tile seen" measured against the
         view that showed most of it (summing what every view should see would ask for ever more)."""
-        evidence = replace(fused.evidence, judged=np.array([fused.largest_view]))
-        return TileState(int(decide(evidence, self.settings)[0]))
+        evidence = replace(fused.evidence, judged=np.array([fused.largest_view]), judgeable=np.zeros(1, np.int64))
+        state = TileState(int(decide(evidence, self.settings)[0]))
+        # views of a sliver do not add up to a view of the tile: one of them must have shown enough
+        return TileState.OCCLUDED if state == TileState.PRESENT and not fused.shown else state
 
     def state_of(self, tile_id: int) -> TileState:
         fused = self.tiles.get(int(tile_id))

@@ -87,6 +87,7 @@ FRACTIONS = (  # ... in [0, 1]
     "min_observed_fraction",
     "present_fraction",
     "present_share",
+    "present_view_share",
     "missing_fraction",
 )
 
@@ -204,6 +205,10 @@ class InspectionSettings:
     present_share: float = setting(
         EVIDENCE.present_share, "default: ... and they are this share of all pixels that saw its place"
     )
+    present_view_share: float = setting(
+        EVIDENCE.present_view_share, "default: ... and this share of all its pixels the view would judge were no "
+        "robot in the way"
+    )
     missing_fraction: float = setting(
         EVIDENCE.missing_fraction, "default: missing when this share of the decisive pixels are against it"
     )
@@ -252,6 +257,7 @@ class InspectionSettings:
             min_observed_fraction=self.min_observed_fraction,
             present_fraction=self.present_fraction,
             present_share=self.present_share,
+            present_view_share=self.present_view_share,
             missing_fraction=self.missing_fraction,
             returns=ReturnSettings(
                 min_range=self.min_range,
