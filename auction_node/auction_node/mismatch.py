@@ -87,7 +87,7 @@ class MismatchDetector:
     misfit_turn: float = math.radians(10.0)  # rad, ... and their turns
     q: dict[int, int] = field(default_factory=dict)
     q_sensed: dict[int, int] = field(default_factory=dict)
-    missing_streak: dict[int, list[View | None]] = field(default_factory=dict)  # views that called it missing
+    missing_streak: dict[int, list[Sighting]] = field(default_factory=dict)  # scans that called it missing
     misplaced_streak: dict[int, list[Sighting]] = field(default_factory=dict)  # scans that called it misplaced
     placed_at: dict[int, float] = field(default_factory=dict)  # s, time of the latest placement
     above: Mapping[int, frozenset[int]] = field(default_factory=dict)  # tile -> the tiles resting on it, all
@@ -150,7 +150,8 @@ class MismatchDetector:
                 continue
             if misplaced is False:
                 self.misplaced_streak.pop(tile_id, None)
-            elif self._misplacement_confirmed(tile_id, view, misplaced if isinstance(misplaced, Misfit) else None):
+            elif self._confirmed(self.misplaced_streak, tile_id, view,
+                                 misplaced if isinstance(misplaced, Misfit) else None):
                 self.lies_wrong(tile_id)
                 found.append(tile_id)
         return sorted(found)
@@ -185,20 +186,11 @@ class MismatchDetector:
                 found.append(tile_id)
         return sorted(found)
 
-    def _confirmed(self, streaks: dict[int, list[View | None]], tile_id: int, view: View | None) -> bool:
-        """Add `view` to the tile's streak; True (and the tile no longer placed) once it confirms."""
-        views = streaks.setdefault(tile_id, [])
-        if self._new_view(views, view):
-            views.append(view)
-        if len(views) < self.confirmations:
-            return False
-        self.unplaced(tile_id)
-        return True
-
-    def _misplacement_confirmed(self, tile_id: int, view: View | None, misfit: Misfit | None) -> bool:
+    def _confirmed(self, streaks: dict[int, list[Sighting]], tile_id: int, view: View | None,
+                   misfit: Misfit | None = None) -> bool:
         """Add the sighting to the tile's streak; True (and the tile no longer placed) once
         `confirmations` sightings from distinct camera positions, this one among them, agree."""
-        sightings = self.misplaced_streak.setdefault(tile_id, [])
+        sightings = streaks.setdefault(tile_id, [])
         agreeing = [(view, misfit)]
         for seen_from, seen in reversed(sightings):
             if self._new_view([v for v, _ in agreeing], seen_from) and self._agree(seen, misfit):
