@@ -31,7 +31,7 @@ import os
 import signal
 import sys
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tiling_assembly.interrupts import postponed_signals
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from vi_node.classify import TileState
@@ -365,10 +366,18 @@ class ScanInspector:
                 initargs=(structure_file, expected, settings),
             )
             # scans go to the workers once they are up: until then this process inspects alone
-            self.workers_up = self.pool.submit(_worker_ready)
+            self.workers_up = self._submit(_worker_ready)
         self.pipeline = InspectionPipeline(load_structure(structure_file), expected, settings)
         self.in_flight: list[Future[ScanResult]] = []  # scans handed to the workers, maybe done
         self.handed_out = 0  # scans the workers inspected in all
+
+    def _submit(self, work: Callable[..., Any], *args: Any) -> Future[Any]:
+        """Hand work to the pool, which may start a worker to take it. A signal arriving while a worker
+        is started waits until it is: cut short, the worker's bootstrap reads half its set-up data and
+        prints a traceback (EOFError) however cleanly this process stops."""
+        assert self.pool is not None
+        with postponed_signals():
+            return self.pool.submit(work, *args)
 
     def __enter__(self) -> ScanInspector:
         return self
@@ -402,7 +411,7 @@ class ScanInspector:
         robots = recording.team.at(scan.stamp_ns, int(s.robot_pose_tolerance * 1e9))
         self.in_flight = [job for job in self.in_flight if not job.done()]
         if self.pool is not None and self.workers_up.done() and len(self.in_flight) < 2 * self.workers:
-            job = self.pool.submit(_inspect_in_worker, scan.cloud, match[0], robots)
+            job = self._submit(_inspect_in_worker, scan.cloud, match[0], robots)
             self.in_flight.append(job)
             self.handed_out += 1
             return scan, job, ""
