@@ -202,6 +202,7 @@ def test_candidate_pairs_are_exactly_the_overlapping_boxes_in_sweep_order(
 @settings(max_examples=50, deadline=None)
 @given(st.integers(5, 14), st.randoms(use_true_random=False))
 def test_triangulation_covers_star_polygons(corners: int, rnd) -> None:  # type: ignore[no-untyped-def]
+    """Corners sorted by angle about a point outside the polygon can run clockwise: covered too."""
     angles_ = np.sort(np.array([rnd.uniform(0, 2 * math.pi) for _ in range(corners)]))
     if np.min(np.diff(np.concatenate([angles_, [angles_[0] + 2 * math.pi]]))) < 0.05:
         return
@@ -212,7 +213,8 @@ def test_triangulation_covers_star_polygons(corners: int, rnd) -> None:  # type:
     triangles = polygons.triangulate(polygon)
     assert len(triangles) == corners - 2
     total = sum(abs(polygons.signed_area(polygon[list(t)])) for t in triangles)
-    assert total == pytest.approx(polygons.signed_area(polygon))
+    assert total == pytest.approx(abs(polygons.signed_area(polygon)))
+    assert all(polygons.signed_area(polygon[list(t)]) > 0 for t in triangles)
 
 
 def test_convex_overlap_area() -> None:
@@ -235,3 +237,11 @@ def test_cell_keys_are_equal_exactly_for_equal_cells_also_on_a_sparse_grid() -> 
         keys = contacts._cell_keys(cells, shape)
         assert [keys[i] == keys[j] for i, j in ((0, 2), (1, 3), (0, 1), (1, 4), (0, 4))] == [
             True, True, False, False, False]
+
+
+def test_a_clockwise_polygon_is_triangulated_like_its_counter_clockwise_twin() -> None:
+    arrow = np.array([[0, 0], [2, 0], [2, 1], [1, 0.4], [0, 1]], float)
+    for polygon in (arrow, arrow[::-1].copy()):
+        triangles = polygons.triangulate(polygon)
+        assert len(triangles) == 3
+        assert sum(polygons.signed_area(polygon[list(t)]) for t in triangles) == pytest.approx(1.4)

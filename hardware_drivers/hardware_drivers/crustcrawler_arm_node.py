@@ -100,6 +100,9 @@ class CrustCrawlerArmSettings:
     reply_timeout: float = setting(_BUS.reply_timeout, "s to wait for a servo's status packet")
     retries: int = setting(_BUS.retries, "attempts per servo transaction before giving up")
     stall_torque: float = setting(1.5, "N·m, AX-12 stall torque (effort estimate)")
+    goal_tolerance: float = setting(_BUS.goal_tolerance, "rad, a trajectory point counts as reached this close")
+    trajectory_wait: float = setting(
+        _BUS.trajectory_wait, "s a lagging trajectory point is waited for before the next is sent")
 
     @classmethod
     def for_joints(cls, count: int) -> CrustCrawlerArmSettings:
@@ -161,7 +164,7 @@ class CrustCrawlerArmNode(Node):
         require_positive(settings, "rate", "reply_timeout")
         rate, reply_timeout = float(settings.rate), float(settings.reply_timeout)
         retries = int(settings.retries)
-        require_positive(settings, "stall_torque")
+        require_positive(settings, "stall_torque", "goal_tolerance", "trajectory_wait")
         self.stall_torque = float(settings.stall_torque)
         require(bool(port), "parameter port must name a device")
 
@@ -169,7 +172,8 @@ class CrustCrawlerArmNode(Node):
             joints = joint_configs(arm["names"], ids, offsets, directions, arm["lower"], arm["upper"],
                                    arm["velocities"])
             config = ArmConfig(port=port, joints=joints, baud=baud, rate=rate, reply_timeout=reply_timeout,
-                               retries=retries)
+                               retries=retries, goal_tolerance=float(settings.goal_tolerance),
+                               trajectory_wait=float(settings.trajectory_wait))
             return ArmDriver(config, on_event=on_event)
 
         self.driver = build_driver(self, arm_driver)

@@ -4,11 +4,15 @@ sent, not cut short (the arm node and the Dynamixel emulator as real processes).
 
 from __future__ import annotations
 
+import time
+
 import pytest
 from processes import Emulator, NodeProcess
 from ros_probe import shared_probe
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from hardware_drivers import dynamixel_protocol as dx
 
 pytestmark = pytest.mark.ros
 
@@ -19,12 +23,15 @@ NAMESPACE = "/trajectory_test"
 def arm(tmp_path_factory: pytest.TempPathFactory):
     directory = tmp_path_factory.mktemp("trajectory")
     emulator = Emulator("dynamixel", directory / "arm")
-    node = NodeProcess("crustcrawler_arm", directory, "-p", f"port:={directory / 'arm'}", namespace=NAMESPACE,
+    # a generous wait for a lagging point: on a loaded machine the driver's readings come late, and a
+    # point given up on would look like a cut corner
+    node = NodeProcess("crustcrawler_arm", directory, "-p", f"port:={directory / 'arm'}",
+                       "-p", "trajectory_wait:=8.0", namespace=NAMESPACE,
                        params_files=("config/hardware_drivers.yaml", "config/crustcrawler_arm.yaml"))
     try:
         joints = shared_probe().collect(JointState, f"{NAMESPACE}/joint_states")
         node.wait_for_log("connected to the", timeout=20.0)
-        yield joints
+        yield joints, emulator
     finally:
         node.stop()
         emulator.close()
@@ -47,6 +54,7 @@ def shoulder_at(angle: float):  # type: ignore[no-untyped-def]
 
 
 def test_a_point_the_arm_reaches_late_is_finished_before_the_next(arm) -> None:
+    arm, emulator = arm
     arm.wait_for(lambda m: "shoulder" in m.name, 10.0, "joint states")
     trajectory = JointTrajectory()
     trajectory.joint_names = ["shoulder"]
@@ -55,5 +63,9 @@ def test_a_point_the_arm_reaches_late_is_finished_before_the_next(arm) -> None:
     arm.clear()
     publisher = shared_probe().publisher(JointTrajectory, f"{NAMESPACE}/joint_trajectory", wait_for_subscriber=10.0)
     publisher.publish(trajectory)
-    arm.wait_for(shoulder_at(1.0), 10.0, "the late first point")
-    arm.wait_for(shoulder_at(0.5), 10.0, "the second point")
+    # the emulator says where the servo was when each goal came: the joint states, sampled at 20 Hz,
+    # can miss the moment the arm turns
+    first_goal = int(emulator.wait_for("goal 2 ", 10.0).split()[2])
+    second = emulator.wait_for("goal 2 ", 20.0).split()
+    assert abs(int(second[5]) - first_goal) * dx.RAD_PER_POSITION <= 0.02, second
+    arm.wait_for(shoulder_at(0.5), 10.0, "the second point", after=time.monotonic())

@@ -94,8 +94,14 @@ def is_convex(polygon: Polygon) -> bool:
 
 
 def triangulate(polygon: Polygon) -> list[tuple[int, int, int]]:
-    """Ear-clipping triangulation of a simple counter-clockwise polygon (corner indices)."""
+    """Ear-clipping triangulation of a simple polygon (corner indices, each triangle counter-clockwise).
+
+    Clockwise corners are walked in reverse: every corner of a clockwise polygon would otherwise look
+    reflex, and no ear would be found.
+    """
     remaining = list(range(len(polygon)))
+    if signed_area(polygon) < 0:
+        remaining.reverse()
     triangles: list[tuple[int, int, int]] = []
     guard = 0
     while len(remaining) > 3 and guard < 10 * len(polygon) ** 2:

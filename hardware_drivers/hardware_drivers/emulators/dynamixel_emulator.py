@@ -24,7 +24,8 @@ overheating switch torque off as the Alarm Shutdown register says), ``mute ID on
 stops answering), ``stall ID POSITION|none``, ``corrupt N`` (next N status packets with a bad
 checksum), ``drop-goals P``, ``packet-loss P``, ``garbage N``, ``silence S``, ``unplug S``, ``plug``,
 ``quit``.
-Events on stdout: ``ready PATH``, ``goal ID POSITION SPEED``, ``torque ID 0|1``, ``missed ID WHAT``
+Events on stdout: ``ready PATH``, ``goal ID POSITION SPEED from PRESENT`` (PRESENT: where the servo
+was when the goal came), ``torque ID 0|1``, ``missed ID WHAT``
 (a dropped instruction: ``goal`` or the instruction's name).
 """
 
@@ -242,7 +243,7 @@ class DynamixelEmulator(EmulatorApp):
             self.emit(f"torque {servo.servo_id} {servo.table[AX12.TORQUE_ENABLE]}")
         goal_after = (servo.word(AX12.GOAL_POSITION), servo.word(AX12.MOVING_SPEED))
         if goal_after != goal_before:
-            self.emit(f"goal {servo.servo_id} {goal_after[0]} {goal_after[1]}")
+            self.emit(f"goal {servo.servo_id} {goal_after[0]} {goal_after[1]} from {round(servo.position)}")
         return error
 
     def tick(self, now: float) -> None:
