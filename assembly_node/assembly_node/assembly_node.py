@@ -12,11 +12,13 @@ announcement is answered with the same bid, a repeated award with the same accep
 Beyond the paper: a placement refused because tiles lie wrong in the way is reported
 (OUTCOME_BLOCKED, a sensor as good as a scan) and the tile waits for their repair; a repair won in an
 auction (REASON_MISPLACED) takes tiles off with the robot's `remove_tile` action (reported
-OUTCOME_REMOVED) and places them back right.
+OUTCOME_REMOVED) and places them back right. A robot with nothing left to place drives home with its
+base's `navigate_to` action (`parking`), out of the scanning robots' view.
 """
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from dataclasses import dataclass
@@ -29,12 +31,13 @@ from rclpy.node import Node
 
 from assembly_node.bidding import compute_bid, compute_repair_bid
 from assembly_node.executor import Outcome, PlanExecutor, StepKind
+from assembly_node.parking import Parking, facing
 from assembly_node.team_contact import TeamContact
 from tiling_assembly.messages import pose_of, structure_from_msg
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly.time_model import TimeModel
-from tiling_assembly_msgs.action import PlaceTile, RemoveTile
+from tiling_assembly_msgs.action import NavigateTo, PlaceTile, RemoveTile
 from tiling_assembly_msgs.msg import (
     AssemblyPlan,
     AuctionAcceptance,
@@ -93,6 +96,11 @@ class AssemblySettings:
         [""], "Tile types with a cache of this robot's own (parallel to cache_xy).")
     cache_xy: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.0], "x1, y1, x2, y2, ... of this robot's own caches in map (m).")
+    park_when_done: bool = setting(
+        True, "With nothing left to place, drive home (navigate_to), out of the scanning robots' view.")
+    home_xy: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
+        [0.0], "x, y in map (m) where the robot waits with nothing to place; fewer than 2 numbers: where the "
+        "overhead cameras first saw it.")
 
 
 class AssemblyNode(Node):
@@ -115,11 +123,15 @@ class AssemblyNode(Node):
         self.strict_order = bool(settings.strict_order)
         self.action_timeout = float(settings.action_timeout)
         self.own_caches = self._cache_overrides()
+        self.parking = Parking(home=self._home()) if settings.park_when_done else None
+        self.parking_handle = None  # the navigate_to goal under way (None: none, or its response pending)
+        self.parking_since: float | None = None  # wall time the drive home was sent; None: no drive
+        self.navigate_lost_since: float | None = None  # wall time the navigate_to server went away
         self.contact = TeamContact(self.robot_name, float(settings.auctioneer_timeout))
         self.bids_made: dict[int, AuctionBid] = {}  # auction id -> the bid sent
         self.acceptances: dict[int, AuctionAcceptance] = {}  # auction id -> the acceptance sent
         self.repairs: dict[int, AuctionAnnouncement] = {}  # auction id -> a repair announcement bid in
-        self.standing_at: tuple[float, float] | None = None  # the overhead cameras' latest view of the base
+        self.standing_at: tuple[float, float] | None = None  # the latest view of the base (overhead, feedback)
 
         self.executor_state: PlanExecutor | None = None
         self.pending_plan: AssemblyPlan | None = None
@@ -145,6 +157,7 @@ class AssemblyNode(Node):
         self.create_subscription(PoseStamped, "overhead_pose", self.on_overhead_pose, 10)
         self.place_client = ActionClient(self, PlaceTile, "place_tile")
         self.remove_client = ActionClient(self, RemoveTile, "remove_tile")
+        self.navigate_client = ActionClient(self, NavigateTo, "navigate_to")
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(float(settings.heartbeat_period), self.publish_status, clock=steady)
@@ -168,6 +181,14 @@ class AssemblyNode(Node):
         if len(xy) != 2 * len(types):
             raise ValueError(f"cache_xy needs 2 numbers per cache type ({len(types)} types), got {len(xy)}")
         return {t: (float(xy[2 * k]), float(xy[2 * k + 1])) for k, t in enumerate(types)}
+
+    def _home(self) -> tuple[float, float] | None:
+        xy = list(self.settings.home_xy)
+        if len(xy) < 2:
+            return None
+        if len(xy) != 2:
+            raise ValueError(f"home_xy needs x and y, got {len(xy)} numbers")
+        return float(xy[0]), float(xy[1])
 
     def cache_of(self, type_name: str) -> tuple[float, float] | None:
         assert self.executor_state is not None
@@ -229,7 +250,19 @@ class AssemblyNode(Node):
         self.step()
 
     def on_overhead_pose(self, msg: PoseStamped) -> None:
+        self.saw_robot_at(msg)
+
+    def on_feedback(self, message) -> None:  # type: ignore[no-untyped-def]
+        """A place or remove action's feedback: where the base is (the overhead cameras may publish
+        only now and then, as the simulated ones do at each scan)."""
+        self.saw_robot_at(message.feedback.robot_pose)
+
+    def saw_robot_at(self, msg: PoseStamped) -> None:
+        if not msg.header.frame_id:
+            return  # the robot does not know its pose yet
         self.standing_at = (msg.pose.position.x, msg.pose.position.y)
+        if self.parking is not None:
+            self.parking.saw_robot_at(self.standing_at)
 
     def on_auctioneer_status(self, msg: AuctioneerStatus) -> None:
         self.contact.heard(time.monotonic(), msg.plan_revision, msg.lost_robots)
@@ -324,6 +357,9 @@ class AssemblyNode(Node):
         if state.in_flight:
             self.watch_running_goal(state.in_flight)
             return
+        if self.parking_since is not None:
+            self.watch_drive_home()
+            return
         if self.now() < self.retry_after:
             return
         held = self.contact.hold_reason(time.monotonic(), state.plan_revision)
@@ -334,6 +370,8 @@ class AssemblyNode(Node):
         if decision.kind is StepKind.WAIT and decision.waiting_for != self.last_wait_logged:
             self.last_wait_logged = decision.waiting_for
             self.get_logger().info(f"tile {decision.tile_id} waits for supports {list(decision.waiting_for)}")
+        if self.parking is not None and self.park(decision.kind is StepKind.DONE):
+            return
         if decision.kind not in (StepKind.PLACE, StepKind.REMOVE):
             return
         if not self.driver_ready():
@@ -350,6 +388,63 @@ class AssemblyNode(Node):
             self.send_removal(decision.tile_id)
             return
         self.send_goal(decision.tile_id)
+
+    def park(self, done: bool) -> bool:
+        """Send the robot home when it has nothing left to place; whether a drive was sent."""
+        assert self.parking is not None and self.executor_state is not None
+        home = self.parking.drive_home(done, self.standing_at)
+        if home is None or not self.navigate_client.server_is_ready():
+            return False
+        self.parking.started()
+        tiles = self.executor_state.structure.tiles.values()
+        centre = (sum(t.position[0] for t in tiles) / len(tiles), sum(t.position[1] for t in tiles) / len(tiles))
+        goal = NavigateTo.Goal()
+        goal.target.header.frame_id = self.executor_state.structure.frame_id
+        goal.target.header.stamp = self.get_clock().now().to_msg()
+        goal.target.pose.position.x, goal.target.pose.position.y = home
+        heading = facing(home, centre)
+        goal.target.pose.orientation.z, goal.target.pose.orientation.w = math.sin(heading / 2), math.cos(heading / 2)
+        self.parking_since = time.monotonic()
+        self.get_logger().info(f"nothing left to place: driving home to ({home[0]:.2f}, {home[1]:.2f})")
+        self.navigate_client.send_goal_async(goal).add_done_callback(self.on_drive_home_response)
+        return True
+
+    def on_drive_home_response(self, future) -> None:  # type: ignore[no-untyped-def]
+        handle = future.result()
+        if handle is None or not handle.accepted:
+            self.end_drive_home("the base refused the goal")
+            return
+        self.parking_handle = handle
+        handle.get_result_async().add_done_callback(self.on_drive_home_result)
+
+    def on_drive_home_result(self, future) -> None:  # type: ignore[no-untyped-def]
+        response = future.result()
+        ok = response.status == GoalStatus.STATUS_SUCCEEDED and response.result.success
+        self.end_drive_home("" if ok else response.result.message or f"goal status {response.status}")
+
+    def watch_drive_home(self) -> None:
+        """A base that stops answering on the way home must not keep the robot from work."""
+        assert self.parking_since is not None
+        if self.navigate_client.server_is_ready():
+            self.navigate_lost_since = None
+        elif self.navigate_lost_since is None:
+            self.navigate_lost_since = time.monotonic()
+        lost = self.navigate_lost_since is not None and time.monotonic() - self.navigate_lost_since > 3.0
+        if lost or time.monotonic() - self.parking_since > self.action_timeout:
+            if self.parking_handle is not None:
+                self.parking_handle.cancel_goal_async()
+            self.end_drive_home("the base stopped answering" if lost else
+                                f"no result within {self.action_timeout:.0f} s")
+
+    def end_drive_home(self, failure: str) -> None:
+        if self.parking_since is None:
+            return
+        self.parking_since, self.parking_handle, self.navigate_lost_since = None, None, None
+        if failure:
+            self.get_logger().warn(f"driving home failed ({failure}); waiting here")
+        else:
+            self.get_logger().info("home: waiting for work")
+        self.step()
 
     def driver_ready(self) -> bool:
         """The robot's place_tile server has been reachable for `SERVER_SETTLE` s."""
@@ -395,7 +490,7 @@ class AssemblyNode(Node):
         state.start(tile_id)
         self.goal_sent_at = self.now()
         self.get_logger().info(f"placing tile {tile_id} ({tile.type_name}), attempt {state.attempts[tile_id]}")
-        future = self.place_client.send_goal_async(goal)
+        future = self.place_client.send_goal_async(goal, feedback_callback=self.on_feedback)
         future.add_done_callback(lambda f, t=tile_id: self.on_goal_response(t, f))
 
     def send_removal(self, tile_id: int) -> None:
@@ -412,7 +507,7 @@ class AssemblyNode(Node):
         state.start_removal(tile_id)
         self.goal_sent_at = self.now()
         self.get_logger().info(f"taking tile {tile_id} off the structure, attempt {state.removal_attempts[tile_id]}")
-        future = self.remove_client.send_goal_async(goal)
+        future = self.remove_client.send_goal_async(goal, feedback_callback=self.on_feedback)
         future.add_done_callback(lambda f, t=tile_id: self.on_goal_response(t, f))
 
     def on_goal_response(self, tile_id: int, future) -> None:  # type: ignore[no-untyped-def]

@@ -1,6 +1,8 @@
 """`m3_robot`: serves ``place_tile`` (tiling_assembly_msgs/action/PlaceTile) for one M3 robot by
 composing its device nodes (paper section 3.1), in the robot's namespace; and ``remove_tile``
-(RemoveTile: take a misplaced tile off the structure, beyond the paper; see remove_tile_mission).
+(RemoveTile: take a misplaced tile off the structure, beyond the paper; see remove_tile_mission);
+and ``navigate_to`` (NavigateTo: drive the base with nothing to handle, the robot going home when it
+has nothing left to place; see drive_mission).
 
     ros2 run hardware_drivers m3_robot --ros-args -r __ns:=/robot1 \\
         --params-file config/hardware_drivers.yaml --params-file config/crustcrawler_arm.yaml
@@ -17,8 +19,8 @@ with ``cmd_vel``; ``scan`` to find the tile at its cache or on the structure; ``
 ``joint_trajectory`` for the arm; ``bumper``/``wheel_drop`` and ``/diagnostics`` of its own
 devices to stop with a clear failure. Tile footprints come from ``/structure`` (latched) or the
 ``structure_file`` parameter. Feedback carries the action's phases; a failure ends with the
-action's error code and one line; a cancel stops the wheels at once. One goal at a time across both
-actions (one arm): a goal of either while another runs is refused, except the same goal sent again
+action's error code and one line; a cancel stops the wheels at once. One goal at a time across the
+three actions (one arm, one base): a goal of any while another runs is refused, except the same goal sent again
 (by a client that missed the goal response), which follows the one under way, with its feedback,
 result and cancel, rather than handling the tile twice.
 """
@@ -29,7 +31,7 @@ import math
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import IntEnum
 from typing import Any
 
@@ -49,6 +51,7 @@ from hardware_drivers.arm_kinematics import ArmGeometry
 from hardware_drivers.base_navigation import GoToPoseParams
 from hardware_drivers.crustcrawler_arm_node import declare_arm_description
 from hardware_drivers.device_health import DeviceHealth, Level
+from hardware_drivers.drive_mission import DriveMission
 from hardware_drivers.goal_slot import GoalSlot
 from hardware_drivers.laser_scan import LaserScanData
 from hardware_drivers.map_pose_tracker import MapPoseTracker, set_yaw, yaw_of
@@ -75,7 +78,7 @@ from hardware_drivers.tile_localization import LocalizationParams, footprint_of
 from tiling_assembly.messages import structure_from_msg
 from tiling_assembly.structure import StructureError, TileType
 from tiling_assembly.structure_file import load_structure
-from tiling_assembly_msgs.action import PlaceTile, RemoveTile
+from tiling_assembly_msgs.action import NavigateTo, PlaceTile, RemoveTile
 from tiling_assembly_msgs.msg import Structure as StructureMsg
 from tiling_ros.parameters import declare_settings, setting
 from tiling_ros.qos import DIAGNOSTICS, LATCHED
@@ -176,8 +179,13 @@ class M3RobotNode(Node):
             self, RemoveTile, "remove_tile", execute_callback=self.execute_removal, goal_callback=self.on_goal,
             cancel_callback=self.on_cancel, callback_group=group,
         )
+        self.navigation_server = ActionServer(
+            self, NavigateTo, "navigate_to", execute_callback=self.execute_navigation,
+            goal_callback=self.on_navigation_goal, cancel_callback=self.on_cancel, callback_group=group,
+        )
         self.get_logger().info(
-            f"serving {self.resolve_topic_name('place_tile')} and {self.resolve_topic_name('remove_tile')}; "
+            f"serving {self.resolve_topic_name('place_tile')}, {self.resolve_topic_name('remove_tile')} and "
+            f"{self.resolve_topic_name('navigate_to')}; "
             "tile types known: "
             f"{', '.join(sorted(self.tile_types)) or 'none yet (waiting for /structure)'}"
         )
@@ -359,6 +367,13 @@ class M3RobotNode(Node):
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
+    def on_navigation_goal(self, goal: NavigateTo.Goal) -> GoalResponse:
+        if not self.slot.reserve():
+            self.get_logger().warning("navigate_to goal rejected: another goal is under way (one base, one goal "
+                                      "at a time)")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
     def on_cancel(self, goal_handle) -> CancelResponse:
         self.stop()  # at once; the mission notices the request within one control period
         return CancelResponse.ACCEPT
@@ -368,6 +383,53 @@ class M3RobotNode(Node):
 
     def execute_removal(self, goal_handle) -> RemoveTile.Result:
         return self._serve(goal_handle, self._remove)
+
+    def execute_navigation(self, goal_handle) -> NavigateTo.Result:
+        with self._lock:
+            started = self.slot.start()
+        if not started:
+            goal_handle.abort()
+            return NavigateTo.Result(success=False, message="another goal is under way")
+        try:
+            ended = self._navigation(goal_handle)
+        finally:
+            with self._lock:
+                self.slot.finish()
+        result = NavigateTo.Result(success=ended.outcome == Outcome.SUCCEEDED, message=ended.message)
+        self._fill_pose(result.final_pose, ended.placed_pose, 0.0)
+        if result.success:
+            goal_handle.succeed()
+            self.health.set_state(Level.OK, "idle; drove to the goal")
+            self.get_logger().info(f"drove to the goal in {ended.duration:.1f} s")
+        elif ended.outcome == Outcome.CANCELED and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+            self.health.set_state(Level.OK, "idle; drive canceled")
+        else:
+            goal_handle.abort()
+            self.health.set_state(Level.WARN, f"idle; drive failed: {ended.message}")
+            self.get_logger().error(f"drive failed ({ended.outcome.name}): {ended.message}")
+        return result
+
+    def _navigation(self, goal_handle) -> MissionResult:
+        request: NavigateTo.Goal = goal_handle.request
+        problem = _frame_problem(request.target.header.frame_id)
+        if problem:
+            return MissionResult(Outcome.FAILED_NAVIGATION, problem)
+        goal = _pose_of(request.target)
+        tolerances = {name: float(value) for name, value in (("position_tolerance", request.position_tolerance),
+                                                              ("yaw_tolerance", request.yaw_tolerance)) if value > 0}
+        config = replace(self.config, navigation=replace(self.config.navigation, **tolerances))
+        self.get_logger().info(f"driving to {goal}")
+
+        def publish(_phase: IntEnum, _progress: float, pose: Pose2D | None) -> None:
+            feedback = NavigateTo.Feedback(distance_remaining=pose.distance_to(goal) if pose is not None else 0.0)
+            self._fill_pose(feedback.current_pose, pose, 0.0)
+            goal_handle.publish_feedback(feedback)
+            self.health.set_state(Level.OK, f"driving to {goal}")
+
+        mission = DriveMission(_GoalHardware(self, goal_handle, _GoalRun(request)), config, publish,
+                               log=self.get_logger().info)
+        return mission.run(goal, f"the goal at ({goal.x:.2f}, {goal.y:.2f})")
 
     def _serve(self, goal_handle, run: Callable[[Any, _GoalRun], Any]) -> Any:
         """Run a goal of either action, or have it follow the same goal under way; its result."""

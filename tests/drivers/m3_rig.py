@@ -53,7 +53,7 @@ def m3_rig(
         for node in nodes[:3]:
             node.wait_for_log("connected to the", timeout=20.0)
         create, arm, urg = emulators
-        yield {"create": create, "arm": arm, "urg": urg, "nodes": {n.name: n for n in nodes}}
+        yield {"create": create, "arm": arm, "urg": urg, "nodes": {n.name: n for n in nodes}, "pose_file": pose_file}
     finally:
         if camera is not None:
             camera.close()

@@ -21,7 +21,7 @@ from ros_probe import probe_health, shared_probe
 
 from hardware_drivers import dynamixel_protocol as dx
 from hardware_drivers.place_tile_mission import Outcome, Phase
-from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.action import NavigateTo, PlaceTile
 
 pytestmark = pytest.mark.ros
 
@@ -217,3 +217,43 @@ def test_a_device_that_stops_answering_fails_with_hardware_error(m3) -> None:
     assert result.error_code == PlaceTile.Result.FAILED_HARDWARE
     assert result.message.startswith("crustcrawler_arm")
     m3["nodes"]["crustcrawler_arm"].wait_for_log("connected to the CrustCrawler arm", timeout=10.0, count=2)
+
+
+def test_navigate_to_drives_the_base_home_and_is_refused_while_a_placement_runs(m3, tmp_path) -> None:
+    """The assembly robot going home with nothing left to place (assembly_node's parking)."""
+    navigate = ActionClient(shared_probe().node, NavigateTo, "/robot1/navigate_to")
+    try:
+        assert navigate.wait_for_server(timeout_sec=20.0)
+        home = NavigateTo.Goal()
+        home.target.header.frame_id = "map"
+        home.target.pose.position.x, home.target.pose.position.y = 0.4, -0.7
+        home.target.pose.orientation.z, home.target.pose.orientation.w = math.sin(0.6), math.cos(0.6)  # 1.2 rad
+        # one base: refused while a placement drives it
+        placing = _goal()
+        placing.cache.x, placing.cache.y = 1.5, 1.5
+        feedback: list = []
+        first = _send(m3["client"], placing, feedback)
+        _wait_until(lambda: bool(feedback), 20.0, "feedback from the placement")
+        refused = _wait(navigate.send_goal_async(home), 10.0)
+        assert not refused.accepted
+        first.cancel_goal_async()
+        assert _wait(first.get_result_async(), 20.0).result.error_code == PlaceTile.Result.CANCELED
+        drive_feedback: list = []
+        handle = None
+        deadline = time.monotonic() + 15.0
+        while handle is None or not handle.accepted:  # the slot frees once the placement has ended
+            assert time.monotonic() < deadline, "navigate_to refused after the placement ended"
+            handle = _wait(navigate.send_goal_async(
+                home, feedback_callback=lambda f: drive_feedback.append(f.feedback)), 10.0)
+            time.sleep(0.2)
+        result = _wait(handle.get_result_async(), 90.0).result
+    finally:
+        shared_probe().retire(navigate)
+    assert result.success, result.message
+    final = result.final_pose.pose
+    assert math.hypot(final.position.x - 0.4, final.position.y + 0.7) < 0.03
+    x, y, yaw = (float(v) for v in m3["pose_file"].read_text().split()[:3])
+    assert math.hypot(x - 0.4, y + 0.7) < 0.05, (x, y)  # the base itself, not just its belief
+    assert abs(math.remainder(yaw - 1.2, math.tau)) < math.radians(10), yaw
+    assert drive_feedback and drive_feedback[0].distance_remaining > drive_feedback[-1].distance_remaining
+    assert wheels_stop(m3["create"], within=2.0)

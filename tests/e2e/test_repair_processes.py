@@ -2,11 +2,13 @@
 robot's body, the planner, the auction node and the robot's assembly node, each an OS process on a
 ROS domain of its own. The test stands in for the VI robot only: once the triangle is on the wrong
 tile, it reports the wrong tile misplaced from two camera positions, so the tile on top is there
-for certain (the full team with its inspection is `test_experiment`'s)."""
+for certain (the full team with its inspection is `test_experiment`'s). With nothing left to place,
+the robot drives home, before the repair (which it then starts from there) and after it."""
 
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -20,9 +22,12 @@ from ros_helpers.spinning import spin_until
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
 
-from tiling_assembly_msgs.msg import TileState, TileStateArray
+from tiling_assembly.structure_file import load_structure
+from tiling_assembly_msgs.msg import SimMotion, TileState, TileStateArray
 from tiling_ros import team_topics as topics
-from tiling_ros.qos import CLOCK, SIM_EVENTS
+from tiling_ros.qos import CLOCK, SIM_EVENTS, SIM_MOTION
+from tiling_sim import sim_interface as sim
+from tiling_sim.robot_motion import start_positions
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -66,6 +71,9 @@ class Team:
                                       SIM_EVENTS)
         topics.DECISIONS_LOG.subscribe(self.node, lambda m: self.decisions.append(m.data))
         self.node.create_subscription(ClockMsg, "/clock", self.on_clock, CLOCK)
+        self.robot_bound_for: list[tuple[float, float]] = []  # where robot1's body says its base goes
+        self.node.create_subscription(SimMotion, sim.MOTION,
+                                      lambda m: self.robot_bound_for.append((m.x, m.y)), SIM_MOTION)
         self.states_pub = topics.TILE_STATES.publisher(self.node)
 
     def on_clock(self, msg: ClockMsg) -> None:
@@ -124,3 +132,8 @@ def test_a_wrong_tile_with_a_tile_on_it_comes_off_under_it_and_both_end_right(te
     taken = [e for e in team.events if e["event"] == "taken_off"]
     assert [e["lay_wrong"] for e in taken] == [None, "wrong_type"]  # 13 lay right: it only had to make way
     assert not [d for d in team.decisions if "opened for tile" in d and f" {WRONG} " not in d]  # nothing else
+    # with nothing left to place, the robot drives home (where it started), out of the cameras' view
+    tiles = load_structure(PAPER_FILE).tiles.values()
+    start = start_positions([(float(t.position[0]), float(t.position[1])) for t in tiles], 1)[0]
+    assert team.spin_until(lambda: math.dist(team.robot_bound_for[-1], start) < 0.01, 60.0), \
+        (start, team.robot_bound_for[-3:])

@@ -10,14 +10,17 @@ the world before it sets out, when the picking ends (did the tile slip?) and whe
 as well (a repair: drive to the tile, lift it off, carry it to the drop-off), asking the world when
 it sets out and when the lifting ends (is the tile there, with nothing resting on it?). Before each
 drive to a stop it asks the world for room there (`standing_room`): where another robot stands, it
-stops beside the cache or round the tile, or waits until the other has gone.
+stops beside the cache or round the tile, or waits until the other has gone. It serves `navigate_to`
+too: its robot driving home with nothing left to place (a straight drive at the motion model's
+speed; where another robot stands there, it stops beside it).
 
-One goal at a time, of either action (the robot has one arm): a second is refused. A goal the world
+One goal at a time, of any of the three actions (the robot has one arm): a second is refused. A goal the world
 does not answer fails (FAILED_HARDWARE).
 """
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -31,7 +34,7 @@ from rclpy.timer import Timer
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure import StructureError
 from tiling_assembly.structure_file import load_structure
-from tiling_assembly_msgs.action import PlaceTile, RemoveTile
+from tiling_assembly_msgs.action import NavigateTo, PlaceTile, RemoveTile
 from tiling_assembly_msgs.msg import SimMotion
 from tiling_assembly_msgs.srv import SimPlace
 from tiling_ros.parameters import declare_settings
@@ -39,7 +42,15 @@ from tiling_ros.qos import SIM_MOTION
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_seconds, stamp_to_seconds
 from tiling_sim import sim_interface as sim
-from tiling_sim.robot_motion import Phase, Point2, Polygon, approach_point, placement_phases, removal_phases
+from tiling_sim.robot_motion import (
+    Phase,
+    Point2,
+    Polygon,
+    approach_point,
+    drive_phase,
+    placement_phases,
+    removal_phases,
+)
 from tiling_sim.sim_settings import RobotBodySettings
 from tiling_sim.standing_room import alternative_spot
 
@@ -77,10 +88,14 @@ class SimRobot(Node):
             self, RemoveTile, "remove_tile", execute_callback=self.execute_removal, goal_callback=self.accept,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
         )
+        self.navigation_server = ActionServer(
+            self, NavigateTo, "navigate_to", execute_callback=self.execute_navigation, goal_callback=self.accept,
+            cancel_callback=lambda _handle: CancelResponse.ACCEPT,
+        )
         self.get_logger().info(f"serving {self.resolve_topic_name('place_tile')} from "
                                f"({self.position[0]:+.2f}, {self.position[1]:+.2f})")
 
-    def accept(self, _goal: PlaceTile.Goal | RemoveTile.Goal) -> GoalResponse:
+    def accept(self, _goal: PlaceTile.Goal | RemoveTile.Goal | NavigateTo.Goal) -> GoalResponse:
         if self.busy:
             self.get_logger().warn(f"{self.name} is busy: refusing a second goal (one arm, one goal at a time)")
             return GoalResponse.REJECT
@@ -92,6 +107,36 @@ class SimRobot(Node):
 
     async def execute_removal(self, handle: Any) -> Removal:
         return await self.run_goal(handle, self.remove, Removal)
+
+    async def execute_navigation(self, handle: Any) -> NavigateTo.Result:
+        """Drive to the goal's x, y (yaw is not modelled: the base's heading costs no time here)."""
+        self.busy = True
+        self.end_decision_window()
+        try:
+            target = handle.request.target.pose.position
+            goal = (target.x, target.y)
+            # the world's time, not this body's latest tick (see `place`)
+            answer = await self.ask(SimPlace.Request.GOING_TO, x=goal[0], y=goal[1])
+            at, stop = stamp_to_seconds(answer.stamp), goal
+            if answer.outcome != SimPlace.Response.OK:
+                stop, at = await self.make_room(goal, goal, self.position, at)
+            feedback = NavigateTo.Feedback(current_pose=self.pose_msg(at),
+                                           distance_remaining=float(math.dist(self.position, stop)))
+            handle.publish_feedback(feedback)
+            phase = drive_phase(self.motion, self.position, stop)
+            self.declare(at + phase.duration, busy=True, position=phase.end)
+            at = await self.time.until(at + phase.duration)
+            self.position = phase.end
+            result = NavigateTo.Result(success=True, final_pose=self.pose_msg(at))
+            handle.succeed()
+        except WorldSilentError as error:
+            self.get_logger().error(str(error))
+            result = NavigateTo.Result(success=False, message=str(error))
+            handle.abort()
+        finally:
+            self.busy = False
+        self.hold_for_next_goal()
+        return result
 
     async def run_goal(self, handle: Any, mission: Any, result_type: type[Result] | type[Removal]) -> Any:
         self.busy = True

@@ -124,6 +124,11 @@ def placement_phases(
     ]
 
 
+def drive_phase(model: MotionModel, start: Point2, end: Point2) -> Phase:
+    """A drive with nothing in the arm (a robot going home): phase 0, no action phase of its own."""
+    return Phase(0, _drive_time(model, start, end), end)
+
+
 def removal_phases(
     model: MotionModel, start: Point2, tile_xy: Point2, drop_off: Point2, obstacles: Sequence[Polygon] = (),
     target: Point2 | None = None, drop_stop: Point2 | None = None,
