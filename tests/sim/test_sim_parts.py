@@ -138,18 +138,29 @@ def test_overhead_errors_stay_while_a_robot_stands_and_respect_the_papers_bounds
 
 
 # --- the clock's pace for a scan --------------------------------------------------------------
-def test_the_clock_stops_while_a_held_scan_renders_runs_at_wall_pace_while_judged() -> None:
+def test_the_clock_stops_for_a_scan_the_explorer_waits_for_until_it_is_judged() -> None:
     hold = ScanHold(limit=30.0)
-    assert hold.pace is Pace.FAST
-    hold.hold(5_000, wall=1.0)
-    assert hold.pace is Pace.STOPPED
-    hold.published(4_000)  # another scan's frame
-    assert hold.pace is Pace.STOPPED
-    hold.published(5_000)
-    assert hold.pace is Pace.REAL
-    assert not hold.release(4_000) and hold.pace is Pace.REAL  # an older scan's verdict
-    assert hold.release(5_000) and hold.pace is Pace.FAST
-    assert not hold.release(5_000)
+    assert hold.pace is Pace.FAST and hold.ceiling() is None
+    hold.hold(5_000_000_000, wall=1.0, stop=True, period=2.0)
+    assert hold.pace is Pace.STOPPED  # rendering and judging cost this host's time, not the robot's
+    assert not hold.judged(4_000_000_000) and hold.pace is Pace.STOPPED  # an older scan's verdict
+    assert hold.judged(5_000_000_000) and hold.pace is Pace.FAST
+    assert hold.ceiling() == pytest.approx(7.0)  # ... up to a period after the scan
+    assert not hold.judged(5_000_000_000)
+
+
+def test_a_streamed_scan_holds_the_clock_a_period_after_it_until_the_next_snapshot() -> None:
+    """A vi_node that falls behind holds time back: the next frame comes a period later however
+    long it took to judge this one (a busy host judges the same scans as a quiet one)."""
+    hold = ScanHold(limit=30.0)
+    hold.hold(5_000_000_000, wall=1.0, stop=False, period=2.0)
+    assert hold.pace is Pace.FAST and hold.ceiling() == pytest.approx(7.0)
+    hold.judged(5_000_000_000)
+    assert hold.ceiling() == pytest.approx(7.0)  # judged early: the clock still waits for the next frame
+    hold.hold(7_000_000_000, wall=1.3, stop=False, period=2.0)
+    assert hold.ceiling() == pytest.approx(9.0)
+    hold.moved()  # the base sets off: no frames on the way
+    assert hold.ceiling() is None and hold.pace is Pace.FAST
 
 
 def test_a_hold_nobody_ends_lapses() -> None:
@@ -158,22 +169,25 @@ def test_a_hold_nobody_ends_lapses() -> None:
     assert not hold.lapsed(11.9) and hold.pace is Pace.STOPPED
     assert hold.lapsed(12.1) and hold.pace is Pace.FAST
     assert not hold.lapsed(20.0)
+    # a ceiling lapses `limit` after the clock reached it, not after the snapshot
+    hold.hold(1_000_000_000, wall=20.0, stop=False, period=2.0)
+    assert not hold.lapsed(30.0, now=2.5) and hold.ceiling() == pytest.approx(3.0)
+    assert not hold.lapsed(31.0, now=3.0)
+    assert not hold.lapsed(32.9, now=3.0)
+    assert hold.lapsed(33.1, now=3.0) == [""] and hold.ceiling() is None
 
 
-def test_with_two_vi_robots_the_slowest_hold_sets_the_pace() -> None:
+def test_with_two_vi_robots_the_tightest_hold_counts() -> None:
     hold = ScanHold(limit=2.0)
-    hold.hold(5_000, wall=1.0, robot="vi1")
-    hold.published(5_000, robot="vi1")
-    assert hold.pace is Pace.REAL
-    hold.hold(6_000, wall=1.1, robot="vi2")
-    assert hold.pace is Pace.STOPPED  # vi2's frame is not rendered yet
-    hold.published(6_000, robot="vi1")  # vi2's stamp, vi1's name: not vi2's frame
-    assert hold.pace is Pace.STOPPED
-    hold.published(6_000, robot="vi2")
-    assert hold.pace is Pace.REAL
-    assert hold.release(5_000, robot="vi1") and hold.pace is Pace.REAL  # vi2 is still judged
-    assert not hold.release(6_000, robot="vi1")
-    assert hold.lapsed(3.2) == ["vi2"] and hold.pace is Pace.FAST
+    hold.hold(5_000_000_000, wall=1.0, robot="vi1", stop=False, period=3.0)
+    hold.hold(6_000_000_000, wall=1.1, robot="vi2", stop=True, period=3.0)
+    assert hold.pace is Pace.STOPPED and hold.ceiling() == pytest.approx(8.0)
+    assert not hold.judged(6_000_000_000, robot="vi1")  # vi2's stamp, vi1's name: vi1 is not stopped
+    assert hold.judged(6_000_000_000, robot="vi2") and hold.pace is Pace.FAST
+    hold.moved("vi1")
+    assert hold.ceiling() == pytest.approx(9.0)
+    assert hold.lapsed(3.2, now=9.0) == []  # vi2's ceiling was only just reached
+    assert hold.lapsed(5.3, now=9.0) == ["vi2"] and hold.ceiling() is None
 
 
 # --- the Kinect's frames ----------------------------------------------------------------------
@@ -189,6 +203,15 @@ def test_frames_come_every_period_once_the_last_is_judged() -> None:
     judged = cycle.judged(1_000_000_000, wall=0.35)
     assert judged is not None and judged[0] is frame and judged[1] == pytest.approx(0.15)
     assert cycle.start(1.5, wall=0.4) is None and cycle.start(2.0, wall=0.4) is not None
+
+
+def test_the_next_frame_is_a_period_after_the_world_time_a_frame_shows() -> None:
+    cycle = ScanCycle(period=1.0, verdict_timeout=3.0)
+    frame = cycle.start(1.0, wall=0.0)  # this body's clock lags the world's
+    assert frame is not None and cycle.snapshot_arrived(frame, 1_800_000_000)
+    cycle.published(frame, wall=0.1)
+    cycle.judged(1_800_000_000, wall=0.2)
+    assert cycle.start(2.5, wall=0.3) is None and cycle.start(2.8, wall=0.3) is not None
 
 
 def test_after_an_arrival_the_base_settles_and_the_next_frame_holds_the_clock() -> None:
@@ -222,6 +245,26 @@ def test_a_frame_is_given_up_without_a_snapshot_or_a_verdict_in_time() -> None:
     assert frame is not None
     cycle.failed(frame)
     assert cycle.frame is None
+
+
+def test_the_world_waits_for_vi_node_only_while_it_answers() -> None:
+    """Before vi_node's first verdict, and after it missed one, frames go to whoever views them
+    without holding the world back, and are given up sooner."""
+    cycle = ScanCycle(period=1.0, verdict_timeout=15.0)
+    frame = cycle.start(1.0, wall=0.0)
+    assert frame is not None and not cycle.answering
+    cycle.snapshot_arrived(frame, 1_000_000_000)
+    cycle.published(frame, wall=0.1)
+    assert cycle.overdue(3.2) is frame and not cycle.answering  # nobody judges: a viewer's timeout
+    frame = cycle.start(2.0, wall=3.3)
+    cycle.snapshot_arrived(frame, 2_000_000_000)
+    cycle.published(frame, wall=3.4)
+    assert cycle.judged(2_000_000_000, wall=3.6) is not None and cycle.answering
+    frame = cycle.start(3.0, wall=3.7)
+    cycle.snapshot_arrived(frame, 3_000_000_000)
+    cycle.published(frame, wall=3.8)
+    assert cycle.overdue(10.0) is None  # a busy vi_node is waited for
+    assert cycle.overdue(18.9) is frame and not cycle.answering  # a dead one is not
 
 
 # --- the world's referee ----------------------------------------------------------------------

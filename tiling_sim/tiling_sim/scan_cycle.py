@@ -1,9 +1,12 @@
 """When the simulated Kinect of the VI robot takes its next frame.
 
-While the base stands, a frame every `period` s of simulated time, but never before vi_node has
-answered the last one (or `verdict_timeout` s of wall time have passed without an answer): the
-simulated camera streams what the inspection consumes, as a real camera's driver drops what nobody
-takes. After the base arrives at a viewpoint it waits `settle` s, and the next frame is the one the
+While the base stands, a frame every `period` s of simulated time, never before vi_node has
+answered the last one (or `verdict_timeout` s of wall time have passed without an answer, a lost
+frame or a dead vi_node); the world does not let its clock pass a frame's stamp + `period` until the
+next frame's snapshot (see `scan_hold`), so the frames come a period apart however busy the host.
+Only while vi_node answers: before its first verdict, and after it missed one, frames go out for
+whoever views them (`ros2 topic echo`, rviz) without holding the world back, each given up after
+`VIEWING_TIMEOUT` s. After the base arrives at a viewpoint it waits `settle` s, and the next frame is the one the
 explorer stopped for: the world holds its clock for it (see `scan_hold`).
 
 A frame goes through three stages: asked (the world's snapshot is on its way), rendering (in the
@@ -13,6 +16,8 @@ body's own thread) and published (vi_node judges it).
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+VIEWING_TIMEOUT = 3.0  # s of wall time a frame waits for a verdict while vi_node does not answer
 
 
 @dataclass
@@ -32,6 +37,7 @@ class ScanCycle:
     moving: bool = False
     arrival_due: bool = False  # the next frame is the one the explorer stopped for
     frame: Frame | None = None  # the frame in its stages, if any
+    answering: bool = False  # vi_node judged a frame and has missed none since: the world waits for it
 
     def __post_init__(self) -> None:
         self.next_at = self.next_at or self.period
@@ -46,7 +52,7 @@ class ScanCycle:
 
     def start(self, now: float, wall: float) -> Frame | None:
         """A new frame when one is due at `now` (simulated s); None otherwise."""
-        if self.moving or self.frame is not None or now < self.next_at:
+        if self.moving or self.frame is not None or now < self.next_at - 1e-9:
             return None
         self.next_at = now + self.period
         self.frame = Frame(held=self.arrival_due, asked_wall=wall)
@@ -58,6 +64,8 @@ class ScanCycle:
         if self.frame is not frame:
             return False
         frame.stamp_ns = stamp_ns
+        # a period after the world's time, not this body's (which lags): the world holds its clock there
+        self.next_at = stamp_ns * 1e-9 + self.period
         return True
 
     def published(self, frame: Frame, wall: float) -> None:
@@ -71,6 +79,7 @@ class ScanCycle:
         if frame is None or frame.published_wall is None or stamp_ns < frame.stamp_ns:
             return None
         self.frame = None
+        self.answering = True
         return frame, wall - frame.published_wall
 
     def overdue(self, wall: float) -> Frame | None:
@@ -78,12 +87,14 @@ class ScanCycle:
         frame = self.frame
         if frame is None:
             return None
+        timeout = self.verdict_timeout if self.answering else min(self.verdict_timeout, VIEWING_TIMEOUT)
         if frame.published_wall is not None:
-            late = wall - frame.published_wall > self.verdict_timeout
+            late = wall - frame.published_wall > timeout
         else:
-            late = frame.stamp_ns == 0 and wall - frame.asked_wall > self.verdict_timeout
+            late = frame.stamp_ns == 0 and wall - frame.asked_wall > timeout
         if late:
             self.frame = None
+            self.answering = self.answering and frame.published_wall is None  # a lost verdict: vi_node is gone
             return frame
         return None
 

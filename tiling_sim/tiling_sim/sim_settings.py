@@ -136,9 +136,9 @@ class WorldSettings(SimLayout):
     overhead_position_error: float = setting(0.05, "Largest overhead localization error, m.")
     overhead_yaw_error_deg: float = setting(10.0, "Largest overhead heading error, degrees.")
     scan_hold_limit: float = setting(
-        30.0, "Longest the clock waits (s of wall time) for the VI robot's scan it was held for (stopped "
-        "while rendered, at the wall clock's pace while judged) before running fast again: the VI body "
-        "died or its messages were lost.")
+        30.0, "Longest the clock waits (s of wall time) for a VI robot's scan it holds for (stopped until "
+        "judged, or at a scan's stamp + scan_period until the next) before running on: the VI body died "
+        "or its messages were lost.")
     start_window: float = setting(
         1.0, "s of wall time simulated time stays at its start for the assembly robots' first goals (a "
         "robot on a loaded host would otherwise begin seconds late).")
@@ -218,10 +218,12 @@ class RobotBodySettings(BodySettings):
 class ViBodySettings(BodySettings):
     """`sim_vi`: the VI robot's body (its base and its Kinect)."""
 
-    scan_period: float = setting(1.0, "s of simulated time between two Kinect scans while the VI robot stands.")
+    scan_period: float = setting(
+        5.0, "s of simulated time between two Kinect scans while the VI robot stands; the world's clock waits "
+        "for a slow vi_node rather than run past it.")
     verdict_timeout: float = setting(
-        3.0, "The next scan waits for vi_node's verdict on the last one (/tile_states) or this many s of "
-        "wall-clock time: the simulated camera streams what the inspection consumes.")
+        15.0, "The next scan waits for vi_node's verdict on the last one (/tile_states) or this many s of "
+        "wall-clock time (a lost frame, a dead vi_node).")
     # the same names as vi_node's: the runner gives both nodes config/vi_node.yaml
     camera_xyz: list[float] = setting(  # noqa: RUF009 - a field() with a default_factory
         [0.08, 0.0, 0.55], "Pose of camera_link in the VI robot's base_link: x, y, z (m).")

@@ -146,10 +146,11 @@ class SimVi(Node):
             overdue = self.cycle.overdue(time.monotonic())
             looked_at = self.cloud_pub.get_subscription_count() > 0  # else rendering would only cost
             frame = self.cycle.start(self.time.now, time.monotonic()) if looked_at else None
+            hold_for = self.settings.scan_period if self.cycle.answering else 0.0  # nobody to wait for
         if overdue is not None:
             self.give_up(overdue)
         if frame is not None:
-            request = SimSnapshot.Request(hold_clock=frame.held, robot=self.name)
+            request = SimSnapshot.Request(hold_clock=frame.held, robot=self.name, hold_for=hold_for)
             self.world.call_async(request).add_done_callback(lambda future: self.on_snapshot(frame, future))
 
     def on_snapshot(self, frame: Frame, future: Any) -> None:
@@ -241,8 +242,8 @@ class SimVi(Node):
             self.get_logger().warn("the world did not answer a snapshot in time: taking the next frame")
             self.progress(SimScanProgress.FAILED, frame)
             return
-        self.get_logger().warn(f"no verdict on the scan of t={frame.stamp_ns * 1e-9:.2f} s within "
-                               f"{self.settings.verdict_timeout:g} s: taking the next one")
+        self.get_logger().warn(f"no verdict on the scan of t={frame.stamp_ns * 1e-9:.2f} s in time: taking the "
+                               "next one")
         self.progress(SimScanProgress.UNJUDGED, frame)
 
     def progress(self, stage: int, frame: Frame, wall_delay: float = 0.0, problem: str = "") -> None:

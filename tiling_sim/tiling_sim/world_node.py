@@ -111,7 +111,8 @@ class SimWorld(Node):
     # --- simulated time -----------------------------------------------------------------------
     def now(self) -> float:
         """Simulated time up to this moment, at the pace it has run since the last tick."""
-        return self.clock.advance(time.monotonic(), self.hold.pace, ceiling=self.body_hold.ceiling())
+        ceilings = [c for c in (self.body_hold.ceiling(), self.hold.ceiling()) if c is not None]
+        return self.clock.advance(time.monotonic(), self.hold.pace, ceiling=min(ceilings, default=None))
 
     def on_start(self, _msg: Empty) -> None:
         if not self.clock.running:
@@ -123,7 +124,7 @@ class SimWorld(Node):
         self.body_hold.starting(self.robots, self.clock.now, self.settings.start_window)
 
     def tick(self) -> None:
-        for robot in self.hold.lapsed(time.monotonic()):
+        for robot in self.hold.lapsed(time.monotonic(), self.clock.now):
             self.get_logger().warn(f"{robot}'s scan held the clock for over {self.settings.scan_hold_limit:g} s "
                                    "of wall time: running on without it")
         lapsed = self.body_hold.lapsed(self.clock.now, time.monotonic()) if self.clock.running else []
@@ -158,6 +159,7 @@ class SimWorld(Node):
         self.whereabouts.expect(msg.robot, msg.arrive_at, (msg.x, msg.y, msg.yaw))
         if msg.robot in self.vi_robots:
             self.room.moved(msg.robot, (msg.x, msg.y))
+            self.hold.moved(msg.robot)
         if msg.robot in self.robots:
             self.now()  # the time up to this news ran under the old ceiling
             if msg.busy:
@@ -209,8 +211,9 @@ class SimWorld(Node):
         self.arrive(now)
         stamp = stamp_from_seconds(now)
         asking = request.robot or self.vi_robots[0]
-        if request.hold_clock:
-            self.hold.hold(stamp_to_nanoseconds(stamp), time.monotonic(), asking)
+        if request.hold_clock or request.hold_for > 0:
+            self.hold.hold(stamp_to_nanoseconds(stamp), time.monotonic(), asking, stop=request.hold_clock,
+                           period=request.hold_for)
         response.stamp = stamp
         world = self.referee.world
         response.present_tiles = sorted(world.present)
@@ -228,16 +231,14 @@ class SimWorld(Node):
         stamp = stamp_to_nanoseconds(msg.scan_stamp)
         robot = msg.robot or self.vi_robots[0]
         self.now()  # the pace changes from this moment on
-        if msg.stage == SimScanProgress.PUBLISHED:
-            self.hold.published(stamp, robot)
-        elif msg.stage == SimScanProgress.JUDGED:
-            self.hold.release(stamp, robot)
+        if msg.stage == SimScanProgress.JUDGED:
+            self.hold.judged(stamp, robot)
             self.event("scan_judged", robot=robot, wall_delay=round(msg.wall_delay, 4), problem=msg.problem)
         elif msg.stage == SimScanProgress.UNJUDGED:
-            self.hold.release(stamp, robot)
+            self.hold.judged(stamp, robot)
             self.event("scan_unjudged", robot=robot, scan_t=stamp * 1e-9)
         elif msg.stage == SimScanProgress.FAILED:
-            self.hold.release(robot=robot)
+            self.hold.judged(robot=robot)
 
     def overhead_pose(self, name: str, stamp: Any) -> PoseStamped:
         """The overhead cameras' view of a robot: its true pose plus the current error."""
