@@ -138,15 +138,22 @@ def test_overhead_errors_stay_while_a_robot_stands_and_respect_the_papers_bounds
 
 
 # --- the clock's pace for a scan --------------------------------------------------------------
-def test_the_clock_stops_for_a_scan_the_explorer_waits_for_until_it_is_judged() -> None:
+def test_the_clock_stops_for_a_scan_the_explorer_waits_for_until_it_is_judged_and_it_decides() -> None:
     hold = ScanHold(limit=30.0)
-    assert hold.pace is Pace.FAST and hold.ceiling() is None
-    hold.hold(5_000_000_000, wall=1.0, stop=True, period=2.0)
-    assert hold.pace is Pace.STOPPED  # rendering and judging cost this host's time, not the robot's
-    assert not hold.judged(4_000_000_000) and hold.pace is Pace.STOPPED  # an older scan's verdict
-    assert hold.judged(5_000_000_000) and hold.pace is Pace.FAST
-    assert hold.ceiling() == pytest.approx(7.0)  # ... up to a period after the scan
-    assert not hold.judged(5_000_000_000)
+    assert hold.pace(0.0) is Pace.FAST and hold.ceiling() is None
+    hold.hold(5_000_000_000, wall=1.0, stop=True, period=2.0, decision_window=0.5)
+    assert hold.pace(1.0) is Pace.STOPPED  # rendering and judging cost this host's time, not the robot's
+    assert not hold.judged(4_000_000_000, wall=1.2)  # an older scan's verdict
+    assert hold.pace(1.3) is Pace.STOPPED
+    assert hold.judged(5_000_000_000, wall=1.4)
+    assert hold.pace(1.8) is Pace.STOPPED  # the explorer decides where next
+    assert hold.pace(1.95) is Pace.FAST
+    assert hold.ceiling() == pytest.approx(7.0)  # ... and time runs up to a period after the scan
+    assert not hold.judged(5_000_000_000, wall=2.0)
+    hold.hold(8_000_000_000, wall=3.0, stop=True, decision_window=0.5)
+    hold.judged(8_000_000_000, wall=3.1)
+    hold.moved()  # the explorer drove on before its window ended
+    assert hold.pace(3.2) is Pace.FAST
 
 
 def test_a_streamed_scan_holds_the_clock_a_period_after_it_until_the_next_snapshot() -> None:
@@ -154,20 +161,20 @@ def test_a_streamed_scan_holds_the_clock_a_period_after_it_until_the_next_snapsh
     long it took to judge this one (a busy host judges the same scans as a quiet one)."""
     hold = ScanHold(limit=30.0)
     hold.hold(5_000_000_000, wall=1.0, stop=False, period=2.0)
-    assert hold.pace is Pace.FAST and hold.ceiling() == pytest.approx(7.0)
-    hold.judged(5_000_000_000)
+    assert hold.pace(1.0) is Pace.FAST and hold.ceiling() == pytest.approx(7.0)
+    hold.judged(5_000_000_000, wall=1.1)
     assert hold.ceiling() == pytest.approx(7.0)  # judged early: the clock still waits for the next frame
     hold.hold(7_000_000_000, wall=1.3, stop=False, period=2.0)
     assert hold.ceiling() == pytest.approx(9.0)
     hold.moved()  # the base sets off: no frames on the way
-    assert hold.ceiling() is None and hold.pace is Pace.FAST
+    assert hold.ceiling() is None and hold.pace(1.4) is Pace.FAST
 
 
 def test_a_hold_nobody_ends_lapses() -> None:
     hold = ScanHold(limit=2.0)
     hold.hold(1, wall=10.0)
-    assert not hold.lapsed(11.9) and hold.pace is Pace.STOPPED
-    assert hold.lapsed(12.1) and hold.pace is Pace.FAST
+    assert not hold.lapsed(11.9) and hold.pace(11.9) is Pace.STOPPED
+    assert hold.lapsed(12.1) and hold.pace(12.1) is Pace.FAST
     assert not hold.lapsed(20.0)
     # a ceiling lapses `limit` after the clock reached it, not after the snapshot
     hold.hold(1_000_000_000, wall=20.0, stop=False, period=2.0)
@@ -181,9 +188,9 @@ def test_with_two_vi_robots_the_tightest_hold_counts() -> None:
     hold = ScanHold(limit=2.0)
     hold.hold(5_000_000_000, wall=1.0, robot="vi1", stop=False, period=3.0)
     hold.hold(6_000_000_000, wall=1.1, robot="vi2", stop=True, period=3.0)
-    assert hold.pace is Pace.STOPPED and hold.ceiling() == pytest.approx(8.0)
-    assert not hold.judged(6_000_000_000, robot="vi1")  # vi2's stamp, vi1's name: vi1 is not stopped
-    assert hold.judged(6_000_000_000, robot="vi2") and hold.pace is Pace.FAST
+    assert hold.pace(1.1) is Pace.STOPPED and hold.ceiling() == pytest.approx(8.0)
+    assert not hold.judged(6_000_000_000, robot="vi1", wall=1.2)  # vi2's stamp, vi1's name: vi1 did not stop
+    assert hold.judged(6_000_000_000, robot="vi2", wall=1.2) and hold.pace(1.2) is Pace.FAST
     hold.moved("vi1")
     assert hold.ceiling() == pytest.approx(9.0)
     assert hold.lapsed(3.2, now=9.0) == []  # vi2's ceiling was only just reached

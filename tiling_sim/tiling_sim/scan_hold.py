@@ -2,8 +2,9 @@
 same simulated time on a quiet host and on a busy one.
 
 - The frame an explorer stopped for: the clock STOPS from its snapshot until vi_node has judged it
-  (or the frame was given up). Rendering it and judging it happen on this host; on the robots they
-  would take the robot's own computer a fixed time, not this host's load.
+  (or the frame was given up), and then for the explorer's next move: until its base sets off, or a
+  decision window (s of wall time) has passed. Rendering, judging and deciding happen on this host;
+  on the robots they would take the robot's own computer a fixed time, not this host's load.
 - Every frame, stopped for or streamed while the base stands: the clock does not pass its stamp plus
   the scan period until the same VI robot's next snapshot, or until its base moves. A vi_node that
   falls behind holds simulated time back instead of missing frames. (Time used to run on at 20x
@@ -28,7 +29,12 @@ class _Hold:
     since: float  # wall time (s) the hold began
     stopped: bool  # the clock stands still until the scan is judged
     ceiling: float | None  # s of simulated time the clock may not pass until the next snapshot
+    decision_window: float = 0.0  # s of wall time the stop lasts once the scan is judged
+    decided_by: float | None = None  # wall time (s) the stop ends, once judged
     reached_at: float | None = None  # wall time (s) the clock was first seen at the ceiling
+
+    def stops(self, wall: float) -> bool:
+        return self.stopped and (self.decided_by is None or wall < self.decided_by)
 
 
 @dataclass
@@ -36,31 +42,42 @@ class ScanHold:
     limit: float  # s of wall time a hold may last at most
     _holds: dict[str, _Hold] = field(default_factory=dict)  # VI robot -> its latest scan's hold
 
-    @property
-    def pace(self) -> Pace:
-        return Pace.STOPPED if any(hold.stopped for hold in self._holds.values()) else Pace.FAST
+    def pace(self, wall: float) -> Pace:
+        """The clock's pace at `wall` (s)."""
+        return Pace.STOPPED if any(hold.stops(wall) for hold in self._holds.values()) else Pace.FAST
 
     def ceiling(self) -> float | None:
         """The simulated time (s) the clock may not pass now; None: it may run."""
         return min((h.ceiling for h in self._holds.values() if h.ceiling is not None), default=None)
 
-    def hold(self, stamp_ns: int, wall: float, robot: str = "", stop: bool = True, period: float = 0.0) -> None:
-        """`robot`'s camera took a snapshot at `stamp_ns`: time stops until it is judged when its
-        explorer stopped for it (`stop`), and does not pass the stamp + `period` (s; 0: no limit)
-        until `robot`'s next snapshot. Replaces `robot`'s last hold."""
+    def hold(self, stamp_ns: int, wall: float, robot: str = "", stop: bool = True, period: float = 0.0,
+             decision_window: float = 0.0) -> None:
+        """`robot`'s camera took a snapshot at `stamp_ns`: time stops when its explorer stopped for it
+        (`stop`), until it is judged and `decision_window` s of wall time more (or the base moves); and
+        it does not pass the stamp + `period` (s; 0: no limit) until `robot`'s next snapshot. Replaces
+        `robot`'s last hold."""
         ceiling = stamp_ns * 1e-9 + period if period > 0 else None
-        self._holds[robot] = _Hold(stamp_ns, wall, stop, ceiling)
+        self._holds[robot] = _Hold(stamp_ns, wall, stop, ceiling, decision_window)
 
-    def judged(self, stamp_ns: int | None = None, robot: str = "") -> bool:
-        """`robot`'s scan of `stamp_ns` (None: whichever is held) was judged or given up: the clock
-        runs again, up to the ceiling. True when that ended a stop."""
+    def judged(self, stamp_ns: int | None = None, robot: str = "", wall: float = 0.0) -> bool:
+        """`robot`'s scan of `stamp_ns` (None: whichever is held) was judged or given up at `wall`: the
+        clock runs again, up to the ceiling, once the decision window has passed. True when that
+        scan stopped the clock."""
         hold = self._holds.get(robot)
-        if hold is None or (stamp_ns is not None and stamp_ns < hold.stamp_ns) or not hold.stopped:
+        if hold is None or (stamp_ns is not None and stamp_ns < hold.stamp_ns) or not hold.stopped \
+                or hold.decided_by is not None:
             return False
-        hold.stopped = False
-        if hold.ceiling is None:
-            del self._holds[robot]
+        hold.decided_by = wall + hold.decision_window
+        self._end_stop(robot, wall)
         return True
+
+    def _end_stop(self, robot: str, wall: float) -> None:
+        """The stop of `robot`'s hold is over at `wall` once decided: it keeps only its ceiling."""
+        hold = self._holds[robot]
+        if hold.stopped and hold.decided_by is not None and wall >= hold.decided_by:
+            hold.stopped = False
+            if hold.ceiling is None:
+                del self._holds[robot]
 
     def moved(self, robot: str = "") -> None:
         """`robot`'s base sets off: it takes no frames on the way, and holds nothing back."""
@@ -69,6 +86,8 @@ class ScanHold:
     def lapsed(self, wall: float, now: float = 0.0) -> list[str]:
         """The robots whose hold has lasted longer than `limit` at `wall` (a ceiling: since the clock,
         at `now` s, reached it); their holds end now."""
+        for robot in list(self._holds):
+            self._end_stop(robot, wall)
         over = []
         for robot, hold in self._holds.items():
             if hold.ceiling is not None and not hold.stopped:

@@ -168,11 +168,17 @@ class BodySettings(SimLayout):
 
     drive_speed: float = setting(0.15, "Base speed, m/s.")
     turn_speed: float = setting(1.0, "Base turning speed, rad/s.")
+    decision_window: float = setting(
+        1.0, "s of wall time the world's clock waits for the robot's next move: after a placement for its next "
+        "goal (see tiling_sim/body_hold.py), after a scan its explorer stopped for until it drives on (see "
+        "tiling_sim/scan_hold.py). Decisions cost no simulated time, however busy the host.")
 
     def check(self, source: str) -> None:
         super().check(source)
         if self.drive_speed <= 0 or self.turn_speed <= 0:
             raise _bad(source, "parameters 'drive_speed' and 'turn_speed' must be positive")
+        if self.decision_window < 0:
+            raise _bad(source, "parameter 'decision_window' must not be negative")
 
 
 @dataclass(frozen=True)
@@ -187,9 +193,6 @@ class RobotBodySettings(BodySettings):
         0.25, "m from a tile's centre to where the base stops to place it (further out if the base would "
         "stand on the structure).")
     base_clearance: float = setting(0.03, "m an assembly robot's base keeps from every tile of the structure.")
-    decision_window: float = setting(
-        1.0, "s of wall time the world's clock waits after a placement for the robot's next goal: the team's "
-        "decision costs no simulated time, however busy the host (see tiling_sim/body_hold.py).")
     room_wait_step: float = setting(
         1.0, "s of simulated time a robot waits before asking again for a spot another robot stands at.")
     room_patience: float = setting(

@@ -150,7 +150,8 @@ class SimVi(Node):
         if overdue is not None:
             self.give_up(overdue)
         if frame is not None:
-            request = SimSnapshot.Request(hold_clock=frame.held, robot=self.name, hold_for=hold_for)
+            request = SimSnapshot.Request(hold_clock=frame.held, robot=self.name, hold_for=hold_for,
+                                          decision_window=self.settings.decision_window)
             self.world.call_async(request).add_done_callback(lambda future: self.on_snapshot(frame, future))
 
     def on_snapshot(self, frame: Frame, future: Any) -> None:

@@ -112,7 +112,8 @@ class SimWorld(Node):
     def now(self) -> float:
         """Simulated time up to this moment, at the pace it has run since the last tick."""
         ceilings = [c for c in (self.body_hold.ceiling(), self.hold.ceiling()) if c is not None]
-        return self.clock.advance(time.monotonic(), self.hold.pace, ceiling=min(ceilings, default=None))
+        wall = time.monotonic()
+        return self.clock.advance(wall, self.hold.pace(wall), ceiling=min(ceilings, default=None))
 
     def on_start(self, _msg: Empty) -> None:
         if not self.clock.running:
@@ -213,7 +214,7 @@ class SimWorld(Node):
         asking = request.robot or self.vi_robots[0]
         if request.hold_clock or request.hold_for > 0:
             self.hold.hold(stamp_to_nanoseconds(stamp), time.monotonic(), asking, stop=request.hold_clock,
-                           period=request.hold_for)
+                           period=request.hold_for, decision_window=request.decision_window)
         response.stamp = stamp
         world = self.referee.world
         response.present_tiles = sorted(world.present)
@@ -232,13 +233,13 @@ class SimWorld(Node):
         robot = msg.robot or self.vi_robots[0]
         self.now()  # the pace changes from this moment on
         if msg.stage == SimScanProgress.JUDGED:
-            self.hold.judged(stamp, robot)
+            self.hold.judged(stamp, robot, wall=time.monotonic())
             self.event("scan_judged", robot=robot, wall_delay=round(msg.wall_delay, 4), problem=msg.problem)
         elif msg.stage == SimScanProgress.UNJUDGED:
-            self.hold.judged(stamp, robot)
+            self.hold.judged(stamp, robot, wall=time.monotonic())
             self.event("scan_unjudged", robot=robot, scan_t=stamp * 1e-9)
         elif msg.stage == SimScanProgress.FAILED:
-            self.hold.judged(robot=robot)
+            self.hold.judged(robot=robot, wall=time.monotonic())
 
     def overhead_pose(self, name: str, stamp: Any) -> PoseStamped:
         """The overhead cameras' view of a robot: its true pose plus the current error."""
