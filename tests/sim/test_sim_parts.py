@@ -168,6 +168,12 @@ def test_a_streamed_scan_holds_the_clock_a_period_after_it_until_the_next_snapsh
     assert hold.ceiling() == pytest.approx(9.0)
     hold.moved()  # the base sets off: no frames on the way
     assert hold.ceiling() is None and hold.pace(1.4) is Pace.FAST
+    # a drive to a viewpoint: time does not pass the arrival, settled, until the frame taken there
+    hold.moved(until=12.2)
+    assert hold.ceiling() == pytest.approx(12.2) and hold.pace(1.5) is Pace.FAST
+    assert not hold.lapsed(100.0, now=11.0)  # the drive itself may take its time
+    hold.hold(12_200_000_000, wall=101.0, stop=True, period=2.0)
+    assert hold.pace(101.0) is Pace.STOPPED and hold.ceiling() == pytest.approx(14.2)
 
 
 def test_a_hold_nobody_ends_lapses() -> None:

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from tiling_sim.sim_interface import VI_SETTLE
+
 VIEWING_TIMEOUT = 3.0  # s of wall time a frame waits for a verdict while vi_node does not answer
 
 
@@ -32,7 +34,7 @@ class Frame:
 class ScanCycle:
     period: float  # s of simulated time between frames while the base stands
     verdict_timeout: float  # s of wall time a frame waits for its snapshot, or for its verdict
-    settle: float = 0.2  # s of simulated time after an arrival before the first frame
+    settle: float = VI_SETTLE  # s of simulated time after an arrival before the first frame
     next_at: float = 0.0  # s of simulated time of the next frame
     moving: bool = False
     arrival_due: bool = False  # the next frame is the one the explorer stopped for

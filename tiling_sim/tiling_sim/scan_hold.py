@@ -5,6 +5,8 @@ same simulated time on a quiet host and on a busy one.
   (or the frame was given up), and then for the explorer's next move: until its base sets off, or a
   decision window (s of wall time) has passed. Rendering, judging and deciding happen on this host;
   on the robots they would take the robot's own computer a fixed time, not this host's load.
+- A drive to a viewpoint: the clock does not pass the arrival (and the base settling) until the frame
+  the explorer stopped there for is taken.
 - Every frame, stopped for or streamed while the base stands: the clock does not pass its stamp plus
   the scan period until the same VI robot's next snapshot, or until its base moves. A vi_node that
   falls behind holds simulated time back instead of missing frames. (Time used to run on at 20x
@@ -21,6 +23,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from tiling_sim.sim_clock import Pace
+
+CEILING_MARGIN = 1e-6  # s: a body's clock at a ceiling may read a nanosecond short of it (whole ns stamps)
 
 
 @dataclass
@@ -56,7 +60,7 @@ class ScanHold:
         (`stop`), until it is judged and `decision_window` s of wall time more (or the base moves); and
         it does not pass the stamp + `period` (s; 0: no limit) until `robot`'s next snapshot. Replaces
         `robot`'s last hold."""
-        ceiling = stamp_ns * 1e-9 + period if period > 0 else None
+        ceiling = stamp_ns * 1e-9 + period + CEILING_MARGIN if period > 0 else None
         self._holds[robot] = _Hold(stamp_ns, wall, stop, ceiling, decision_window)
 
     def judged(self, stamp_ns: int | None = None, robot: str = "", wall: float = 0.0) -> bool:
@@ -79,9 +83,12 @@ class ScanHold:
             if hold.ceiling is None:
                 del self._holds[robot]
 
-    def moved(self, robot: str = "") -> None:
-        """`robot`'s base sets off: it takes no frames on the way, and holds nothing back."""
+    def moved(self, robot: str = "", until: float | None = None) -> None:
+        """`robot`'s base sets off: it takes no frames on the way; the clock does not pass `until` (s:
+        its arrival, settled; None: no limit) until the frame taken there."""
         self._holds.pop(robot, None)
+        if until is not None:
+            self._holds[robot] = _Hold(0, float("inf"), False, until + CEILING_MARGIN)
 
     def lapsed(self, wall: float, now: float = 0.0) -> list[str]:
         """The robots whose hold has lasted longer than `limit` at `wall` (a ceiling: since the clock,
@@ -91,7 +98,7 @@ class ScanHold:
         over = []
         for robot, hold in self._holds.items():
             if hold.ceiling is not None and not hold.stopped:
-                if now < hold.ceiling - 1e-9:
+                if now < hold.ceiling - 2 * CEILING_MARGIN:
                     continue
                 hold.reached_at = wall if hold.reached_at is None else hold.reached_at
                 if wall - hold.reached_at > self.limit:

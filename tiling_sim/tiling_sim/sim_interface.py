@@ -40,6 +40,7 @@ SCAN_PROGRESS = "/sim/scan_progress"
 EVENTS = "/sim/events"
 START = "/sim/start"
 
+VI_SETTLE = 0.2  # s of simulated time a VI robot's base settles after an arrival before its camera's frame
 WORLD_PATIENCE = 30.0  # s of wall time a body waits for the world to answer before giving up
 
 

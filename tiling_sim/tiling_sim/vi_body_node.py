@@ -112,15 +112,20 @@ class SimVi(Node):
         goal = (target.position.x, target.position.y, yaw)
         with self.lock:
             self.cycle.departed()
+            # a frame the world waits for comes on arrival only when vi_node answers (see ScanCycle)
+            framed = self.cycle.answering and self.cloud_pub.get_subscription_count() > 0
         feedback = NavigateTo.Feedback(distance_remaining=float(math.dist(self.pose[:2], goal[:2])))
         feedback.current_pose = self.pose_msg(self.time.now)
         handle.publish_feedback(feedback)
         arrive_at = self.time.now + drive_time_to_pose(self.motion, self.pose, goal)
-        self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=goal[0], y=goal[1], yaw=goal[2]))
+        self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=goal[0], y=goal[1], yaw=goal[2],
+                                          busy=framed))
         arrived = await self.time.until(arrive_at)
         self.pose = goal
         with self.lock:
-            self.cycle.arrived(arrived)  # the base settles, then the frame the explorer waits for
+            # the base settles, then the frame the explorer waits for: counted from the arrival the world
+            # was told of (this body may wake late; the world holds its clock for that frame, see scan_hold)
+            self.cycle.arrived(arrive_at)
         result = NavigateTo.Result(success=True)
         result.final_pose = self.pose_msg(arrived)  # stamped with the time of arrival
         handle.succeed()

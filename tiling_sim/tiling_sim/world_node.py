@@ -160,7 +160,7 @@ class SimWorld(Node):
         self.whereabouts.expect(msg.robot, msg.arrive_at, (msg.x, msg.y, msg.yaw))
         if msg.robot in self.vi_robots:
             self.room.moved(msg.robot, (msg.x, msg.y))
-            self.hold.moved(msg.robot)
+            self.hold.moved(msg.robot, until=msg.arrive_at + sim.VI_SETTLE if msg.busy else None)
         if msg.robot in self.robots:
             self.now()  # the time up to this news ran under the old ceiling
             if msg.busy:
