@@ -96,8 +96,9 @@ class ExplorerSettings:
     viewpoints_per_ring: int = setting(8, "Viewpoints on each ring.")
     settle_time: float = setting(0.2, "s after arriving before a scan counts.")
     scan_timeout: float = setting(
-        5.0, "s of wall-clock time to wait at a viewpoint for a scan's verdict (vi_node answers every scan, with "
-        "states or the reason there are none: this only covers a silent vi_node).")
+        5.0, "s to wait at a viewpoint for a scan's verdict, on the node's clock (simulated time in the simulation, "
+        "which waits for a busy vi_node; vi_node answers every scan, with states or the reason there are none: "
+        "this only covers a silent vi_node).")
     travel_cost: float = setting(0.5, "Priority points one metre of driving costs.")
     other_robots: str = setting(_CAMERA.other_robots, "Robots whose overhead_pose to follow, comma-separated "
                                 "(empty: every one that appears).")
@@ -149,7 +150,6 @@ class ExplorerNode(Node):
         self.start: tuple[float, float, float] | None = None  # the overhead cameras' pose before the first goal
         self.started_wall = time.monotonic()
         self.arrived_at: float | None = None  # s (node clock); None while driving
-        self.arrived_wall = 0.0  # s (steady clock) of the arrival
         self.idle_until = -math.inf  # s (node clock): staying put, nothing to resolve
         self.driving = False
         self.repeats = RepeatFilter()
@@ -259,7 +259,7 @@ class ExplorerNode(Node):
         if self.here is None and not self.ready_for_a_first_goal():
             return
         now = self.now()
-        if self.arrived_at is not None and time.monotonic() < self.arrived_wall + self.scan_timeout:
+        if self.arrived_at is not None and now < self.arrived_at + self.scan_timeout:
             return  # still waiting for the verdict of a scan from here
         if self.arrived_at is not None:
             self.get_logger().warn(f"no verdict on a scan from this viewpoint within {self.scan_timeout:g} s; "
@@ -346,7 +346,6 @@ class ExplorerNode(Node):
         # the base's own time of arrival: this node may hear of it late, and scans count from then
         arrival = result.final_pose.header.stamp
         self.arrived_at = self.now() if is_zero(arrival) else stamp_to_seconds(arrival)
-        self.arrived_wall = time.monotonic()
 
 
 def main(args: list[str] | None = None) -> int:
