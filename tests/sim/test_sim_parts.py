@@ -172,6 +172,8 @@ def test_a_streamed_scan_holds_the_clock_a_period_after_it_until_the_next_snapsh
     hold.moved(until=12.2)
     assert hold.ceiling() == pytest.approx(12.2) and hold.pace(1.5) is Pace.FAST
     assert not hold.lapsed(100.0, now=11.0)  # the drive itself may take its time
+    hold.hold(11_000_000_000, wall=100.5, stop=False, period=2.0)  # asked for before it set off
+    assert hold.ceiling() == pytest.approx(12.2)
     hold.hold(12_200_000_000, wall=101.0, stop=True, period=2.0)
     assert hold.pace(101.0) is Pace.STOPPED and hold.ceiling() == pytest.approx(14.2)
 

@@ -45,7 +45,10 @@ class ScanCycle:
         self.next_at = self.next_at or self.period
 
     def departed(self) -> None:
+        """The base sets off: a frame under way shows the place it left, and the frame the explorer
+        stops for next must not wait for its verdict."""
         self.moving = True
+        self.frame = None
 
     def arrived(self, now: float) -> None:
         self.moving = False

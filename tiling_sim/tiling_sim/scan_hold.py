@@ -36,6 +36,7 @@ class _Hold:
     decision_window: float = 0.0  # s of wall time the stop lasts once the scan is judged
     decided_by: float | None = None  # wall time (s) the stop ends, once judged
     reached_at: float | None = None  # wall time (s) the clock was first seen at the ceiling
+    arrival: float | None = None  # s: a drive's hold, until the frame taken after this arrival
 
     def stops(self, wall: float) -> bool:
         return self.stopped and (self.decided_by is None or wall < self.decided_by)
@@ -60,6 +61,9 @@ class ScanHold:
         (`stop`), until it is judged and `decision_window` s of wall time more (or the base moves); and
         it does not pass the stamp + `period` (s; 0: no limit) until `robot`'s next snapshot. Replaces
         `robot`'s last hold."""
+        driving = self._holds.get(robot)
+        if driving is not None and driving.arrival is not None and stamp_ns * 1e-9 < driving.arrival:
+            return  # a frame asked for before the base set off: the drive's hold stands
         ceiling = stamp_ns * 1e-9 + period + CEILING_MARGIN if period > 0 else None
         self._holds[robot] = _Hold(stamp_ns, wall, stop, ceiling, decision_window)
 
@@ -88,7 +92,7 @@ class ScanHold:
         its arrival, settled; None: no limit) until the frame taken there."""
         self._holds.pop(robot, None)
         if until is not None:
-            self._holds[robot] = _Hold(0, float("inf"), False, until + CEILING_MARGIN)
+            self._holds[robot] = _Hold(0, float("inf"), False, until + CEILING_MARGIN, arrival=until)
 
     def lapsed(self, wall: float, now: float = 0.0) -> list[str]:
         """The robots whose hold has lasted longer than `limit` at `wall` (a ceiling: since the clock,

@@ -169,7 +169,7 @@ class BodySettings(SimLayout):
     drive_speed: float = setting(0.15, "Base speed, m/s.")
     turn_speed: float = setting(1.0, "Base turning speed, rad/s.")
     decision_window: float = setting(
-        1.0, "s of wall time the world's clock waits for the robot's next move: after a placement for its next "
+        2.0, "s of wall time the world's clock waits for the robot's next move: after a placement for its next "
         "goal (see tiling_sim/body_hold.py), after a scan its explorer stopped for until it drives on (see "
         "tiling_sim/scan_hold.py). Decisions cost no simulated time, however busy the host.")
 
