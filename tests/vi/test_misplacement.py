@@ -276,15 +276,7 @@ def test_a_first_step_as_large_as_a_flag_is_refitted_even_where_no_pixel_disagre
     """Seen at grazing incidence, a small tile turned 29 degrees can agree on every pixel it shows;
     its points still say it turned. Its pixels not disturbed, the refit runs on the first step alone
     when that step is as large as a flag (the pixels then decide whether it is believed)."""
-    block = PlacedTile(1, "block", _box_type(0.05, 0.05, 0.05), np.eye(3), np.array([0.0, 0.0, 0.0]))
-    turned = moved_tile(block, (0.0, 0.0, math.radians(25.0)))
-    points = _seen_faces(turned)
-    patches, scene = PlanarPatches([block]), VirtualScene([block])
-    closest, normal, tile = scene.closest_points(points)
-    scan = ScanPoints(points, np.ones(len(points)), tile, closest, normal)
-    context = PlacementContext(patches=patches, camera_position=np.array([0.6, -1.0, 0.6]), tiles=[block],
-                               surfaces=scene, solid=[True], disturbed=[False])
-    fit = assess(scan, context, MisplacementSettings())[0]
+    fit = _block_fits_at_depths((0.0, 0.0, math.radians(25.0)), (1.0,), disturbed=False)[1.0]
     assert fit.misplaced and abs(math.degrees(fit.offset[2]) - 25.0) < 3.0
 
 
@@ -308,16 +300,57 @@ def test_a_turn_must_move_the_corners_twice_as_far_as_the_camera_resolves() -> N
     assert 0.011 < fits[2.0].resolution < 0.013  # the corners moved 1.2 cm: resolved once, not twice
 
 
-def _block_fits_at_depths(offset: tuple[float, float, float], depths: tuple[float, ...]) -> dict[float, TileFit]:
-    """The fit of a 5 cm block moved by `offset`, its seen faces' points measured at each of `depths`."""
+def _block_fits_at_depths(offset: tuple[float, float, float], depths: tuple[float, ...],
+                          disturbed: bool = True) -> dict[float, TileFit]:
+    """The fit of a 5 cm block moved by `offset`, its seen faces' points measured at each of `depths`;
+    a second block in place 10 cm beside it pins the scan's alignment down."""
     block = PlacedTile(1, "block", _box_type(0.05, 0.05, 0.05), np.eye(3), np.array([0.0, 0.0, 0.0]))
-    points = _seen_faces(moved_tile(block, offset))
-    patches, scene = PlanarPatches([block]), VirtualScene([block])
+    beside = PlacedTile(2, "block", _box_type(0.05, 0.05, 0.05), np.eye(3), np.array([-0.1, 0.0, 0.0]))
+    points = np.vstack([_seen_faces(moved_tile(block, offset)), _seen_faces(beside)])
+    patches, scene = PlanarPatches([block, beside]), VirtualScene([block, beside])
     closest, normal, tile = scene.closest_points(points)
-    context = PlacementContext(patches=patches, camera_position=np.array([0.6, -1.0, 0.6]), tiles=[block],
-                               surfaces=scene, solid=[True], disturbed=[True])
+    context = PlacementContext(patches=patches, camera_position=np.array([0.6, -1.0, 0.6]), tiles=[block, beside],
+                               surfaces=scene, solid=[True, True], disturbed=[disturbed, False])
     return {depth: assess(ScanPoints(points, np.full(len(points), depth), tile, closest, normal), context,
                           MisplacementSettings())[0] for depth in depths}
+
+
+def test_a_tile_that_seems_moved_as_the_whole_scan_is_misaligned_is_not_flagged() -> None:
+    """CI once repaired the right long rectangle 3 in the middle of paper_14's base row, "off by
+    1.7 cm" along the row from two views: its ends lie flush with its neighbours', and a scan
+    misaligned along the row makes it look moved. Brought back by its motion, the neighbours' points
+    fit as well as its own: no flag (unresolved). Moved alone, the neighbours' ends pin it down."""
+    row = [structure().tiles[t] for t in (1, 3, 2)]
+    patches, scene = PlanarPatches(row), VirtualScene(row)
+    context = PlacementContext(patches=patches, camera_position=np.array([1.0, -1.0, 0.3]), tiles=row,
+                               surfaces=scene, solid=[True] * 3, disturbed=[True] * 3, suspects=(1,))
+    faces = [_row_faces(tile, side=tile.tile_id == 1) for tile in row]
+    along = np.array([0.018, 0.0, 0.0])
+    misaligned = np.vstack(faces) + along
+    fits = assess(_row_points(misaligned, scene), context, MisplacementSettings())
+    assert not any(fit.misplaced for fit in fits.values()), fits
+    assert fits[1].unresolved
+    moved_alone = np.vstack([faces[0], faces[1] + along, faces[2]])
+    fits = assess(_row_points(moved_alone, scene), context, MisplacementSettings())
+    assert fits[1].misplaced and abs(fits[1].offset[0] - 0.018) < 0.003
+    assert not fits[0].misplaced and not fits[2].misplaced
+
+
+def _row_faces(tile: PlacedTile, side: bool) -> np.ndarray:
+    """Points on a base long rectangle's +x end, a few on its top (seen at a grazing angle) and on its
+    -y side when that is the row's outer side (a camera low off the row's +x, -y corner)."""
+    low, high = tile.aabb
+    xs, ys, zs = np.linspace(low[0] + 0.004, high[0] - 0.004, 30), np.linspace(low[1] + 0.003, high[1] - 0.003, 8), \
+        np.linspace(low[2] + 0.003, high[2] - 0.003, 5)
+    top = np.array([[x, y, high[2]] for x in xs[::3] for y in ys[::4]])
+    end = np.array([[high[0], y, z] for y in ys for z in zs])
+    outer = np.array([[x, low[1], z] for x in xs for z in zs]) if side else np.zeros((0, 3))
+    return np.vstack([top, end, outer])
+
+
+def _row_points(points: np.ndarray, scene: VirtualScene) -> ScanPoints:
+    closest, normal, tile = scene.closest_points(points)
+    return ScanPoints(points, np.ones(len(points)), tile, closest, normal)
 
 
 def _seen_faces(block: PlacedTile) -> np.ndarray:

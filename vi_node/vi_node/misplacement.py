@@ -63,6 +63,10 @@ class MisplacementSettings:
     disturbed_pixels: int = 15  # ... and at least this many disagree with its planned pose
     rival_share: float = 0.75  # another type lies there when it explains this share of the pixels where
     rival_pixels: int = 20  # ... the two types differ, and at least this many (`type_hypotheses`)
+    pin_radius: float = 0.3  # m: the other tiles' points this near a moved tile tell its motion from a misalignment ...
+    pin_motion: float = 0.005  # m: ... those the motion would carry this far across their faces ...
+    pin_points: int = 30  # ... at least this many of them ...
+    pin_share: float = 0.4  # ... fitting worse, brought back by it, by this share of how far it carries them
 
 
 @dataclass(frozen=True)
@@ -352,6 +356,8 @@ def _judge_tile(
     if not turned:  # a turn within the noise is no part of the motion (it could push the tile into a neighbour)
         offset = (offset[0], offset[1], 0.0)
     moved = (shifted or turned) and believable and _fits_among(context.tiles, index, offset, context.solid)
+    if moved and not _told_from_misalignment(scan, owners, index, refit, claimed, context, settings):
+        moved, unresolved = False, True
     # the refit must explain the points better; a clear turn of a small tile barely changes the
     # distances (the noise is as large as the corners' motion), its significance speaks for it
     better = refit.after <= min(settings.improvement * refit.before, refit.before - settings.min_gain) or (
@@ -372,6 +378,40 @@ def _judge_tile(
         unresolved=unresolved,
         resolution=resolution,
     )
+
+
+def _told_from_misalignment(
+    scan: ScanPoints, owners: _Owners, index: int, refit: _Refit, claimed: NDArray[np.bool_],
+    context: PlacementContext, settings: MisplacementSettings,
+) -> bool:
+    """Whether the points of the tiles around a tile found moved pin the scan down against its
+    motion. Had the scan been misaligned by that motion instead, bringing every point back by it
+    would put the others' points onto their faces as well as its own; a tile moved alone leaves
+    them off their faces once brought back. Only points the motion carries across their faces
+    (`pin_motion`) can tell, and at least `pin_points` of them must: with too few the tile's motion
+    is no evidence. (In CI, a right long rectangle in the middle of the base row, its ends flush
+    with its neighbours', took a 1.7 cm misalignment along the row as its own from two views, and was
+    taken off the structure with the five tiles above it.)"""
+    centre = context.patches.tile_centroid[index]
+    near = np.hypot(scan.points[:, 0] - centre[0], scan.points[:, 1] - centre[1]) <= settings.pin_radius
+    others = near & (owners.owner != index) & (owners.owner < len(context.patches)) & ~claimed
+    others[refit.explained] = False
+    if context.by_robots is not None:
+        others &= ~context.by_robots
+    chosen = np.flatnonzero(others)
+    back = _apply(scan.points[chosen], centre, refit.back[0], refit.back[1])
+    across = np.abs(np.einsum("ij,ij->i", back - scan.points[chosen], scan.normal[chosen]))
+    pinning = across >= settings.pin_motion
+    if np.count_nonzero(pinning) < settings.pin_points:
+        return False
+    chosen, back, across = chosen[pinning], back[pinning], across[pinning]
+    # off the plane of the face each point was found on: a point carried into a 2 cm tile is soon as
+    # near its top as it was to its side
+    normal, face = scan.normal[chosen], scan.closest[chosen]
+    before = np.abs(np.einsum("ij,ij->i", scan.points[chosen] - face, normal))
+    after = np.abs(np.einsum("ij,ij->i", back - face, normal))
+    worse = after - before
+    return bool(np.median(worse) >= settings.pin_share * np.median(across))
 
 
 def _corner_reach(tile: PlacedTile) -> float:
@@ -452,6 +492,8 @@ class _Refit:
     shift_sigmas: float  # significance (standard deviations) of the fitted shift ...
     turn_sigmas: float  # ... and turn
     explained: NDArray[np.int64]  # the points the moved tile explains
+    back: tuple[float, Array] = (0.0, np.zeros(2))  # G: turn (rad) about the tile's centroid, then shift (m),
+    # that brings its points back onto the tile where it should be
 
 
 def _fit_tile(
@@ -565,7 +607,7 @@ def _summarise(
     after = float(np.median(np.where(final.found, final.distance, 0.08)))
     explained = chosen[final.found & (final.distance <= 0.006)]
     x, y, _ = _motion(centre, theta, shift)
-    return _Refit((x, y, -turn), before, after, shift_sigmas, turn_sigmas, explained)
+    return _Refit((x, y, -turn), before, after, shift_sigmas, turn_sigmas, explained, (theta, shift))
 
 
 class TileSurfaces(Protocol):
