@@ -133,6 +133,8 @@ def test_wrong_landings_are_detected_when_their_repair_is_auctioned_and_repaired
         WorldEvent(60.0, "placed", 6), WorldEvent(60.0, "misplaced", 6, misplacement="shift"),  # wrong again
         WorldEvent(70.0, "taken_off", 6), WorldEvent(90.0, "placed", 6),
         WorldEvent(95.0, "placed", 8),
+        WorldEvent(100.0, "placed", 5), WorldEvent(100.0, "misplaced", 5, misplacement="shift"),
+        WorldEvent(110.0, "removed", 5), WorldEvent(150.0, "placed", 5),  # a removal fault took it away
     ]
     r.announcements = [
         Announcement(30.0, 1, 6, REASON_MISPLACED),
@@ -148,11 +150,13 @@ def test_wrong_landings_are_detected_when_their_repair_is_auctioned_and_repaired
     outcomes = [o.as_dict() for o in misplacement_outcomes(r)]
     assert outcomes == [
         {"tile": 6, "kind": "turn", "injected_at": 10.0, "detected_at": 30.0, "repaired_at": 90.0,
-         "found_by": "robot"},
+         "found_by": "robot", "removed_at": None},
         {"tile": 7, "kind": "wrong_type", "injected_at": 12.0, "detected_at": None, "repaired_at": None,
-         "found_by": None},
+         "found_by": None, "removed_at": None},
         {"tile": 6, "kind": "shift", "injected_at": 60.0, "detected_at": 65.0, "repaired_at": 90.0,
-         "found_by": "inspection"},
+         "found_by": "inspection", "removed_at": None},
+        {"tile": 5, "kind": "shift", "injected_at": 100.0, "detected_at": None, "repaired_at": 150.0,
+         "found_by": None, "removed_at": 110.0},
     ]
     assert false_repairs(r) == [{"t": 96.0, "tile": 8}, {"t": 97.0, "tile": 6}]
     assert not r.present_at(6, 50.0, r.presence_intervals())  # taken off ends its stay

@@ -23,6 +23,7 @@ from vi_node.misplacement import (
     _reaching_over,
     assess,
     confirmed_by_pixels,
+    hinted_motion,
     moved_as_one,
     moved_tile,
     something_else_there,
@@ -102,6 +103,27 @@ def test_no_tile_of_an_intact_structure_is_flagged() -> None:
             for t in result.tiles
             if t.state not in (TileState.PRESENT, TileState.OCCLUDED)
         ]
+
+
+def test_points_leaning_towards_a_motion_that_no_refit_confirmed_show_no_tile_in_place() -> None:
+    """A wedge turned 30 degrees whose pixels all agreed stepped 0.66 of a flag's turn: it is not
+    shown present (the pipeline leaves it undetermined); a step of a third of a flag is noise, and
+    so is a step that moves the tile less than the camera resolves at its depth."""
+    settings = MisplacementSettings()
+    wedge = structure("gate_9").tiles[6]  # corners 4.2 cm from its centre
+
+    def fit(step: tuple[float, float, float], judged: bool = True, resolution: float = 0.004) -> TileFit:
+        return TileFit(points=300, residual=0.005, judged=judged, misplaced=False, first_step=np.array(step),
+                       resolution=resolution)
+
+    assert hinted_motion(fit((0.0, 0.0, 0.66 * settings.turn)), wedge, settings)
+    assert hinted_motion(fit((0.7 * settings.shift, 0.0, 0.0)), wedge, settings)
+    assert not hinted_motion(fit((0.0, 0.0, 0.33 * settings.turn)), wedge, settings)
+    assert not hinted_motion(fit((0.3 * settings.shift, 0.2 * settings.shift, 0.0)), wedge, settings)
+    assert not hinted_motion(fit((0.0, 0.0, settings.turn), judged=False), wedge, settings)
+    far = 0.011  # m resolved 1.9 m off
+    assert not hinted_motion(fit((0.0, 0.0, 0.77 * settings.turn), resolution=far), wedge, settings)
+    assert not hinted_motion(fit((0.7 * settings.shift, 0.0, 0.0), resolution=far), wedge, settings)
 
 
 def test_a_refit_of_a_tile_that_is_gone_is_not_a_misplacement() -> None:

@@ -138,8 +138,11 @@ def misplacement_table(result: ExperimentResult) -> list[str]:
     asked = sum(r.wrong_landings_planned for r in result.fault_trials())
     by_scans = sum(o.found_by == "inspection" for o in outcomes)
     by_robots = sum(o.found_by == "robot" for o in outcomes)
+    removed = sum(o.removed_at is not None and o.detected_at is None for o in outcomes)
+    taken_away = (f"; {removed} taken away by a removal fault before any repair (then a missing tile)"
+                  if removed else "")
     return [*lines, f"asked for {asked}, {len(outcomes)} landed wrong (the others had no room to and landed "
-                    f"as planned); found by inspection {by_scans}, by a robot in its way {by_robots}",
+                    f"as planned); found by inspection {by_scans}, by a robot in its way {by_robots}{taken_away}",
             f"false repairs (repair auctioned for a tile lying right): {wrongly}; "
             f"median landing -> right tile in place: {median}"]
 

@@ -178,10 +178,12 @@ class MisplacementOutcome:
     taken_off_at: float | None
     repaired_at: float | None  # the right tile was in place
     found_by: str | None = None  # "inspection" (two scans) or "robot" (found it in its way)
+    removed_at: float | None = None  # a removal fault took the wrong tile away before a repair did
 
     def as_dict(self) -> dict[str, object]:
         return {"tile": self.tile, "kind": self.kind, "injected_at": self.injected_at,
-                "detected_at": self.detected_at, "repaired_at": self.repaired_at, "found_by": self.found_by}
+                "detected_at": self.detected_at, "repaired_at": self.repaired_at, "found_by": self.found_by,
+                "removed_at": self.removed_at}
 
 
 def wrong_stays(record: TrialRecord) -> list[tuple[WorldEvent, float]]:
@@ -202,9 +204,11 @@ def misplacement_outcomes(record: TrialRecord) -> list[MisplacementOutcome]:
         right = next((e.t for e in sorted(record.events, key=lambda e: e.t)
                       if e.kind == "placed" and e.tile == landing.tile and e.t >= gone
                       and (e.tile, e.t) not in wrong_landings), None)
+        removed = next((e.t for e in record.events if e.kind == "removed" and e.tile == landing.tile
+                        and e.t == gone), None)
         outcomes.append(MisplacementOutcome(landing.tile, landing.misplacement, landing.t, detected,
                                             None if gone == float("inf") else gone, right,
-                                            _repair_finder(record, landing.tile, detected)))
+                                            _repair_finder(record, landing.tile, detected), removed))
     return outcomes
 
 

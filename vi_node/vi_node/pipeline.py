@@ -49,6 +49,7 @@ from vi_node.misplacement import (
     ScanPoints,
     assess,
     confirmed_by_pixels,
+    hinted_motion,
     moved_as_one,
     other_shape,
     something_else_there,
@@ -739,7 +740,8 @@ class InspectionPipeline:
                         tile.physical, tile.see_through + tile.blank, self.misplacement_settings, fit.resolution))):
                 tile.state, tile.offset = TileState.MISPLACED, (0.0, 0.0, 0.0)
                 result.misplacement[tile.tile_id] = (True, tile.offset, fit.residual)
-            elif tile.state is TileState.PRESENT and (fit.misplaced or fit.unresolved):
+            elif tile.state is TileState.PRESENT and (fit.misplaced or fit.unresolved or hinted_motion(
+                    fit, model.tiles[index], self.misplacement_settings)):
                 # its points moved (or within the noise), its pixels cannot tell: no verdict rather
                 # than "present and in place"
                 tile.state = TileState.OCCLUDED
