@@ -53,6 +53,7 @@ from tiling_sim.robot_motion import drive_time_to_pose
 from tiling_sim.scan_bag import ScanBagWriter
 from tiling_sim.scan_cycle import Frame, ScanCycle
 from tiling_sim.sim_settings import ViBodySettings
+from tiling_sim.whereabouts import standing_at
 
 # reliable: Fast DDS loses most fragmented 3.7 MB samples best effort, and the next frame waits for
 # the verdict on this one (vi_node's sensor_reliability auto follows)
@@ -76,6 +77,7 @@ class SimVi(Node):
         if self.name not in starts:
             raise ValueError(f"sim_vi in /{self.name}: not one of vi_robot_names ({', '.join(s.vi_team)})")
         self.pose: Pose2 = starts[self.name]
+        self.drive: tuple[float, Pose2] | None = None  # (arrive_at, goal) of the drive under way
         fx, fy, cx, cy = s.intrinsics
         width, height = s.intrinsics_size
         self.kinect = KinectSimulator(PinholeIntrinsics(fx, fy, cx, cy, width, height), seed=s.seed)
@@ -120,8 +122,11 @@ class SimVi(Node):
         arrive_at = self.time.now + drive_time_to_pose(self.motion, self.pose, goal)
         self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=goal[0], y=goal[1], yaw=goal[2],
                                           busy=framed))
+        with self.lock:
+            self.drive = (arrive_at, goal)
         arrived = await self.time.until(arrive_at)
-        self.pose = goal
+        with self.lock:
+            self.pose, self.drive = goal, None
         with self.lock:
             # the base settles, then the frame the explorer waits for: counted from the arrival the world
             # was told of (this body may wake late; the world holds its clock for that frame, see scan_hold)
@@ -162,9 +167,13 @@ class SimVi(Node):
     def on_snapshot(self, frame: Frame, future: Any) -> None:
         snapshot: SimSnapshot.Response | None = future.result()
         with self.lock:
-            wanted = snapshot is not None and self.cycle.snapshot_arrived(frame, stamp_to_nanoseconds(snapshot.stamp))
+            # where the world has the base at the snapshot's time: this body's clock may lag the world's,
+            # and a frame rendered from where the body thought it was lay a whole drive off its overhead pose
+            stamp = None if snapshot is None else stamp_to_nanoseconds(snapshot.stamp)
+            wanted = stamp is not None and self.cycle.snapshot_arrived(frame, stamp)
+            pose = self.pose if stamp is None else standing_at(stamp * 1e-9, self.pose, self.drive)
         if wanted:
-            self.render_pool.submit(self.render, frame, snapshot, self.pose)
+            self.render_pool.submit(self.render, frame, snapshot, pose)
 
     def render(self, frame: Frame, snapshot: SimSnapshot.Response, pose: Pose2) -> None:
         """One Kinect frame of the snapshot's world from the camera's true pose (on the render thread)."""

@@ -41,3 +41,13 @@ class Whereabouts:
             self.poses[robot] = pose
             stopped.append(robot)
         return stopped
+
+
+def standing_at(t: float, standing: Pose2, drive: tuple[float, Pose2] | None) -> Pose2:
+    """Where a robot that stands at `standing`, and is driving to drive[1] arriving at drive[0] (s), stands
+    at `t` (s of the world's time), as `Whereabouts` has it: at the goal from the arrival on. A body whose
+    clock lags the world's (a busy host) asks this for a frame the world stamped after its arrival."""
+    if drive is not None and t >= drive[0]:
+        return drive[1]
+    return standing
+
