@@ -127,7 +127,6 @@ class SimVi(Node):
         arrived = await self.time.until(arrive_at)
         with self.lock:
             self.pose, self.drive = goal, None
-        with self.lock:
             # the base settles, then the frame the explorer waits for: counted from the arrival the world
             # was told of (this body may wake late; the world holds its clock for that frame, see scan_hold)
             self.cycle.arrived(arrive_at)
@@ -169,11 +168,10 @@ class SimVi(Node):
         with self.lock:
             # where the world has the base at the snapshot's time: this body's clock may lag the world's,
             # and a frame rendered from where the body thought it was lay a whole drive off its overhead pose
-            stamp = None if snapshot is None else stamp_to_nanoseconds(snapshot.stamp)
-            wanted = stamp is not None and self.cycle.snapshot_arrived(frame, stamp)
-            pose = self.pose if stamp is None else standing_at(stamp * 1e-9, self.pose, self.drive)
-        if wanted:
-            self.render_pool.submit(self.render, frame, snapshot, pose)
+            if snapshot is None or not self.cycle.snapshot_arrived(frame, stamp_to_nanoseconds(snapshot.stamp)):
+                return
+            pose = standing_at(stamp_to_nanoseconds(snapshot.stamp) * 1e-9, self.pose, self.drive)
+        self.render_pool.submit(self.render, frame, snapshot, pose)
 
     def render(self, frame: Frame, snapshot: SimSnapshot.Response, pose: Pose2) -> None:
         """One Kinect frame of the snapshot's world from the camera's true pose (on the render thread)."""
