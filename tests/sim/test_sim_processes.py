@@ -31,9 +31,10 @@ from std_msgs.msg import String
 
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure_file import load_structure
-from tiling_assembly_msgs.action import PlaceTile
+from tiling_assembly_msgs.action import NavigateTo, PlaceTile
+from tiling_assembly_msgs.msg import SimMotion
 from tiling_assembly_msgs.srv import SimSnapshot
-from tiling_ros.qos import SIM_EVENTS
+from tiling_ros.qos import SIM_EVENTS, SIM_MOTION
 from tiling_ros.stamps import stamp_to_nanoseconds
 from tiling_sim.robot_motion import placement_phases
 from tiling_sim.scan_bag import read_truth
@@ -281,6 +282,34 @@ def test_the_clock_waits_a_decision_window_for_the_robots_next_goal(sim: Simulat
     later = [stamp for wall, stamp in ticks if wall > done + 2.5]
     assert len(held) == 1, sorted(held)
     assert later and min(later) > held.pop()
+
+
+def test_a_vi_base_that_wakes_late_reports_the_arrival_the_world_was_told_of(sim: Simulator) -> None:
+    """The VI robot's body stopped for 1 s of wall time while it drives (the world's clock runs on:
+    nobody judges its frames here) wakes long after its arrival; the goal's final pose still carries
+    the arrival it told the world, from which the explorer counts the frame the world holds for it
+    (stamped with the body's wake-up, every viewpoint's frame looked too early to count)."""
+    arrivals: list[float] = []
+    sim.node.create_subscription(SimMotion, "/sim/motion",
+                                 lambda m: arrivals.append(m.arrive_at) if m.robot == "vi" else None, SIM_MOTION)
+    navigate = ActionClient(sim.node, NavigateTo, "/vi/navigate_to")
+    assert sim.spin_until(navigate.server_is_ready, 30.0), "sim_vi never served navigate_to"
+    goal = NavigateTo.Goal()
+    goal.target.header.frame_id = "map"
+    goal.target.pose.position.x, goal.target.pose.position.y = 0.9, 0.0
+    goal.target.pose.orientation.z, goal.target.pose.orientation.w = 1.0, 0.0  # facing the structure
+    stalled = _process_tree(sim.processes["sim_vi"].pid)
+    handle = sim.call(navigate.send_goal_async(goal))
+    assert handle.accepted
+    for pid in stalled:
+        os.kill(pid, signal.SIGSTOP)
+    sim.spin_until(lambda: False, 1.0)
+    for pid in stalled:
+        os.kill(pid, signal.SIGCONT)
+    result = sim.call(handle.get_result_async(), timeout=60.0).result
+    assert result.success
+    assert sim.spin_until(lambda: bool(arrivals), 5.0), "no motion on /sim/motion"
+    assert stamp_to_nanoseconds(result.final_pose.header.stamp) == round(arrivals[-1] * 1e9)
 
 
 def test_a_robot_standing_at_a_cache_keeps_another_from_it_until_patience_runs_out() -> None:

@@ -124,14 +124,16 @@ class SimVi(Node):
                                           busy=framed))
         with self.lock:
             self.drive = (arrive_at, goal)
-        arrived = await self.time.until(arrive_at)
+        await self.time.until(arrive_at)
         with self.lock:
             self.pose, self.drive = goal, None
             # the base settles, then the frame the explorer waits for: counted from the arrival the world
             # was told of (this body may wake late; the world holds its clock for that frame, see scan_hold)
             self.cycle.arrived(arrive_at)
         result = NavigateTo.Result(success=True)
-        result.final_pose = self.pose_msg(arrived)  # stamped with the time of arrival
+        # stamped with the arrival the world was told of, not when this body woke (later on a busy host):
+        # the explorer counts the frame the world holds at the arrival + settle as taken there
+        result.final_pose = self.pose_msg(arrive_at)
         handle.succeed()
         return result
 

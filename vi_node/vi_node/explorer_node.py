@@ -73,6 +73,7 @@ ROBOT_BOXES = _CAMERA.robot_mask()
 ROBOT_POSE_AGE = 60.0  # s: a robot's latest overhead pose stands for it that long (robots wait long)
 FIRST_GOAL_DISCOVERY = 3.0  # s of wall time for the other VI robots to be discovered before the first goal
 FIRST_GOAL_PATIENCE = 10.0  # s of wall time after which the first goal goes without this robot's own pose
+STAMP_SLACK = 1e-6  # s: a frame taken at the arrival + settle may be stamped a nanosecond short of it
 
 
 @dataclass(frozen=True)
@@ -246,7 +247,7 @@ class ExplorerNode(Node):
                                 stamp, view)
         if msg.robot_name and msg.robot_name != self.robot_name:
             return  # another VI robot's scan: what it saw counts, but this robot's wait goes on
-        if self.arrived_at is not None and stamp >= self.arrived_at + self.settle:
+        if self.arrived_at is not None and stamp >= self.arrived_at + self.settle - STAMP_SLACK:
             if msg.problem and self.here is not None:  # the scan taken here gave no states
                 self.get_logger().info(f"no tile states from this viewpoint ({msg.problem}); trying another")
                 self.exploration.viewpoint_failed(self.candidates.index(self.here), self.now())
