@@ -122,6 +122,15 @@ def test_removals_come_due_in_order() -> None:
     assert faults.choose([]) is None
 
 
+def test_the_clock_stops_at_each_removal_not_yet_due() -> None:
+    faults = FaultInjector(seed=1, removal_times=[50.0, 20.0])
+    assert faults.next_removal_after(10.0) == 20.0
+    assert faults.next_removal_after(20.0) == 50.0  # at 20 s it is due: the clock may run on to the next
+    faults.removed()
+    faults.removed()
+    assert faults.next_removal_after(10.0) is None
+
+
 def test_automatic_start_positions_lie_outside_the_structure_and_apart() -> None:
     centres = [(float(t.position[0]), float(t.position[1])) for t in PAPER.tiles.values()]
     starts = start_positions(centres, 4, clearance=0.6)

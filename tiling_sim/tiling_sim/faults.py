@@ -63,6 +63,11 @@ class FaultInjector:
         """How many removals are due at `now` (they stay due until `removed` is called)."""
         return sum(1 for t in self.removal_times if t <= now)
 
+    def next_removal_after(self, now: float) -> float | None:
+        """The time (s) of the first removal not yet due at `now`, if any: the world's clock stops
+        there, so a removal happens at its time however far apart a busy host's ticks are."""
+        return next((t for t in self.removal_times if t > now), None)
+
     def choose(self, candidates: list[int]) -> int | None:
         """The tile to remove among `candidates`, or None when there is none."""
         return self.rng.choice(sorted(candidates)) if candidates else None

@@ -3,7 +3,7 @@
 What no robot carries on board, in one process (the world host under `--hosts netns`): the
 simulated `/clock` (running `real_time_factor` times faster than the wall clock, paced by the VI
 robots' scans, see `sim_clock` and `scan_hold`, and held at the end of an assembly robot's phase until
-its body goes on, see `body_hold`), the physical structure S_p, the faults (tiles
+its body goes on, see `body_hold`, and at each removal's time), the physical structure S_p, the faults (tiles
 removed at random times, tiles slipping from a gripper, landing shifted, turned or of the wrong
 type, and the repairs that take them off again), the overhead localization of every robot
 (`/<robot>/overhead_pose`, true pose plus the paper's errors of up to 5 cm and 10 degrees) and
@@ -111,7 +111,8 @@ class SimWorld(Node):
     # --- simulated time -----------------------------------------------------------------------
     def now(self) -> float:
         """Simulated time up to this moment, at the pace it has run since the last tick."""
-        ceilings = [c for c in (self.body_hold.ceiling(), self.hold.ceiling()) if c is not None]
+        removal = self.referee.faults.next_removal_after(self.clock.now)
+        ceilings = [c for c in (self.body_hold.ceiling(), self.hold.ceiling(), removal) if c is not None]
         wall = time.monotonic()
         return self.clock.advance(wall, self.hold.pace(wall), ceiling=min(ceilings, default=None))
 
