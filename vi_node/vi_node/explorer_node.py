@@ -109,9 +109,8 @@ class ExplorerSettings:
         Exploration.shared_weight, "Share of its priority a tile keeps that another VI robot's claimed view resolves.")
     claim_age: float = setting(120.0, "s a viewpoint another VI robot claimed stands without news of it.")
     idle_wait: float = setting(
-        3.0, "s of simulated time the robot stays without stopping for a scan when no tile is unresolved and no "
-        "other viewpoint is better (the camera's own frames go on meanwhile; a tile they leave unresolved ends "
-        "the wait).")
+        3.0, "s of simulated time the robot stays without stopping for a scan when no other viewpoint is better "
+        "(the camera's own frames go on meanwhile; a tile that becomes unresolved ends the wait).")
 
 
 class ExplorerNode(Node):
@@ -151,7 +150,8 @@ class ExplorerNode(Node):
         self.start: tuple[float, float, float] | None = None  # the overhead cameras' pose before the first goal
         self.started_wall = time.monotonic()
         self.arrived_at: float | None = None  # s (node clock); None while driving
-        self.idle_until = -math.inf  # s (node clock): staying put, nothing to resolve
+        self.idle_until = -math.inf  # s (node clock): staying put, no better place to look from
+        self.waiting_on: set[int] = set()  # the tiles unresolved when the stay began
         self.driving = False
         self.repeats = RepeatFilter()
         self.team = TeamPoses()
@@ -268,7 +268,7 @@ class ExplorerNode(Node):
             if self.here is not None:
                 self.exploration.viewpoint_failed(self.candidates.index(self.here), now)
             self.arrived_at = None
-        if now < self.idle_until and not self.exploration.unresolved():
+        if now < self.idle_until and set(self.exploration.unresolved()) <= self.waiting_on:
             return
         if not self.navigate.server_is_ready():
             self.get_logger().warn("navigate_to is not available", throttle_duration_sec=10.0)
@@ -297,8 +297,10 @@ class ExplorerNode(Node):
         neighbours = [(p.x, p.y, p.yaw) for p in self.team.latest(self.claims.robots())]
         index, score = self.exploration.choose(self.candidates, here, now, gains, claimed=claimed,
                                                neighbours=neighbours)
-        if self.candidates[index] == self.here and not self.exploration.unresolved():
-            self.idle_until = now + float(self.settings.idle_wait)  # no need to stop the world for a look
+        if self.candidates[index] == self.here:
+            # the camera's frames go on while it stands; stopping for another look from here would take
+            # a frame every settle time (0.2 s), sooner than a robot's vi_node judges one
+            self.idle_until, self.waiting_on = now + float(self.settings.idle_wait), set(self.exploration.unresolved())
             return
         self.go_to(self.candidates[index], score)
 
