@@ -227,7 +227,7 @@ class PlanExecutor:
             self.placed -= wrong
             self.blocked_by[tile_id] = wrong
             self.attempts[tile_id] = self.attempts.get(tile_id, 1) - 1
-            self.remaining.insert(0, tile_id)
+            self._keep_first(tile_id)
             return Outcome.WAITS_FOR_REPAIR
         if success:
             self.placed.add(tile_id)
@@ -239,13 +239,19 @@ class PlanExecutor:
         if absent:
             self.placed -= absent
             self.attempts[tile_id] = self.attempts.get(tile_id, 1) - 1
-            self.remaining.insert(0, tile_id)
+            self._keep_first(tile_id)
             return Outcome.BLOCKED
         if self.attempts.get(tile_id, 0) < self.max_attempts:
-            self.remaining.insert(0, tile_id)
+            self._keep_first(tile_id)
             return Outcome.RETRY
         self.attempts.pop(tile_id, None)
         return Outcome.GAVE_UP
+
+    def _keep_first(self, tile_id: int) -> None:
+        """`tile_id` goes back first in the task, unless it is in it already: a repair won while its
+        place action ran has put it where it belongs, and a second entry would place it twice."""
+        if tile_id not in self.remaining:
+            self.remaining.insert(0, tile_id)
 
     def task(self) -> list[int]:
         """The tiles still to place, the one under way first."""

@@ -225,3 +225,17 @@ def test_a_tile_found_lying_wrong_in_its_own_place_is_placed_right_after_its_rep
     state.finish_removal(13, True)
     place(state, 13)
     assert state.next_step().kind is StepKind.DONE and not state.blocked_by
+
+
+def test_a_repair_won_while_the_tile_is_being_placed_places_it_once() -> None:
+    state = executor([13])
+    for tile in (1, 2, 3, 6, 4, 9, 11):
+        state.note_placed(tile)
+    state.start(13)  # won after a scan called it missing: it is there, shifted
+    state.award_repair(13, [])  # a robot found it in the way meanwhile; this robot won its repair
+    assert state.finish(13, False, wrong_tiles=[13]) is Outcome.WAITS_FOR_REPAIR
+    assert state.remaining.count(13) == 1
+    state.start_removal(13)
+    state.finish_removal(13, True)
+    place(state, 13)
+    assert state.next_step().kind is StepKind.DONE
