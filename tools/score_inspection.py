@@ -21,7 +21,8 @@ and its JSON lines are compared with the truth. Tallies per scene set and per ti
   (>= 40 pixels with a return on it), scans calling it present, scans calling it missing, and the
   fused state; a turned tile whose turn lies within 15 degrees of one that maps its shape onto
   itself (an octagon turned 40 degrees) is kind "turn_onto_symmetry", not "turn";
-- failed scans (an "error" key, or no line for the scan) per set.
+- failed scans (an "error" key, or no line for the scan) per set, and among the scans whose truth
+  shows S_a (>= 60 returns on its tiles; fewer leave nothing to align on, so failing there is right).
 
 Single views: every one of the first --views scans on its own (unit: tile x scan). Fused: the
 state after the last of the first --views scans (unit: tile); when that scan failed, the last fused
@@ -48,6 +49,9 @@ from one_line_errors import InputError, OneLineParser, run_command
 
 REPO = Path(__file__).resolve().parent.parent
 SEEN_PIXELS = 40  # a scan "sees" a tile with at least this many pixels of it
+# a scan shows S_a with at least this many returns on its tiles (vi_node's min_alignment_points):
+# below it no alignment is possible, and a failure is no fault of the alignment
+SA_SHOWN_RETURNS = 60
 LEAST_TURN_DEG = 15.0  # a turn the issue asks to flag; an octagon turned 40 degrees is turned 5 (its symmetry)
 ALL = "all"
 
@@ -168,6 +172,11 @@ def visible(scan: dict[str, Any], tile: int) -> bool:
     return int(counts.get(str(tile), 0)) >= SEEN_PIXELS
 
 
+def shows_s_a(scan: dict[str, Any]) -> bool:
+    """Whether the scan's truth has enough returns on the structure's tiles to align on."""
+    return sum(scan.get("tile_returns", {}).values()) >= SA_SHOWN_RETURNS
+
+
 def type_key(truth: dict[str, Any], tile: int) -> str:
     name = truth["tile_types"][str(tile)]
     size = truth.get("type_sizes_cm", {}).get(name)
@@ -270,9 +279,13 @@ def score_scene(tally: Tally, truth: dict[str, Any], single: list[dict[str, Any]
         misplaced_rows.append({"set": set_name, "bag": truth.get("_bag", ""), "id": tile, "kind": kind,
                                "type": tk, "single": states, "seeing_views": seeing, "fused": fused_state,
                                "effective_turn_deg": effective})
-    for line in single:
+    for line, scan in zip(single, scans, strict=True):
+        failed = int(line is None or "error" in line)
         tally.add("scans", set_name, ALL, "single")
-        tally.add("scans", set_name, ALL, "single_failed", int(line is None or "error" in line))
+        tally.add("scans", set_name, ALL, "single_failed", failed)
+        if shows_s_a(scan):
+            tally.add("scans", set_name, ALL, "showing")
+            tally.add("scans", set_name, ALL, "showing_failed", failed)
     for line in fused:
         tally.add("scans", set_name, ALL, "fused")
         tally.add("scans", set_name, ALL, "fused_failed", int(line is None or "error" in line))
@@ -345,10 +358,12 @@ def report(t: Tally, sets: list[str], views: int, timings: dict[str, dict[str, l
                           "scans missing", "scans misplaced", "fused misplaced", "fused present", "fused missing"],
                          rows))
         out.append("")
-    out.append("=== Failed scans (error, or no output line) ===")
-    out.append(table(["set", "single", "fused"],
+    out.append(f"=== Failed scans (error, or no output line); 'S_a shown': >= {SA_SHOWN_RETURNS} returns on "
+               "S_a's tiles in the truth ===")
+    out.append(table(["set", "single", "fused", "single, of scans showing S_a"],
                      [[s, cell(t.get("scans", s, ALL, "single_failed"), t.get("scans", s, ALL, "single")),
-                       cell(t.get("scans", s, ALL, "fused_failed"), t.get("scans", s, ALL, "fused"))]
+                       cell(t.get("scans", s, ALL, "fused_failed"), t.get("scans", s, ALL, "fused")),
+                       cell(t.get("scans", s, ALL, "showing_failed"), t.get("scans", s, ALL, "showing"))]
                       for s in rows_sets]))
     out.append("")
     for s in rows_sets:

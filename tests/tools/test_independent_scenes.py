@@ -125,6 +125,9 @@ def test_generator_writes_a_readable_bag_with_truth_and_the_scorer_scores_it(tmp
     outcomes = sum(removed.get(f"removed_{k}", 0) for k in ("detected", "undetermined", "called_present"))
     assert outcomes == len(truth["removed"])
     assert data["counts"]["single"]["all"]["all"]["removed"] == 3 * len(truth["removed"])
+    shown = [scan for scan in truth["scans"][:3] if sum(scan["tile_returns"].values()) >= 60]
+    assert data["counts"]["scans"]["all"]["all"].get("showing", 0) == len(shown)
+    assert "of scans showing S_a" in scored.stdout
 
 
 def test_bad_arguments_and_structures_give_one_line(tmp_path: Path) -> None:
