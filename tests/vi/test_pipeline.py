@@ -254,6 +254,12 @@ def test_structure_hidden_behind_another_robot_gives_no_states() -> None:
     for settings in (PAPER, DEFAULT):
         result = InspectionPipeline(paper, None, settings).inspect(cloud, OverheadPose(*view.overhead))
         assert not result.ok and result.tiles == []
+    # told where that robot stands, the pipeline says why: not a failed alignment, nothing to align on
+    told = InspectionPipeline(paper, None, DEFAULT).inspect(
+        cloud, OverheadPose(*view.overhead), [OverheadPose(0.0, -0.45, 0.0)]
+    )
+    assert not told.ok and told.tiles == []
+    assert told.reason.startswith("S_a not in view: the other robots stand in front of"), told.reason
 
 
 def test_everything_removed_gives_no_states() -> None:

@@ -82,6 +82,7 @@ NON_NEGATIVE = (  # ... >= 0
 FRACTIONS = (  # ... in [0, 1]
     "ratio_threshold",
     "min_alignment_inliers",
+    "hidden_by_robots",
     "min_agreement",
     "ambiguity",
     "min_observed_fraction",
@@ -171,6 +172,10 @@ class InspectionSettings:
     )
     min_alignment_points: int = setting(60, "a scan with fewer aligned candidates is not classified")
     min_alignment_inliers: float = setting(0.6, "fraction of candidates that must lie on S_a after ICP")
+    hidden_by_robots: float = setting(
+        0.9, "default: a scan that fails to align while the other robots stand in front of this share of S_a "
+        "says S_a is not in view"
+    )
     min_agreement: float = setting(0.35, "a scan agreeing with less of what S_a predicts is not classified")
     max_pose_correction: float = setting(
         0.09, "largest believable correction of the overhead camera position (m): 5 cm + lever arms"

@@ -224,11 +224,12 @@ class InspectionPipeline:
             self._mask_tall_things(scan, level)
         starts, failure = self._search_x_y_yaw(scan, level)
         if failure:
-            return scan.failed(failure)
+            return scan.failed(self._hidden_by_robots(scan, level) or failure)
         results = [self._classify_from(scan, start) for start in starts]
         rivals = distinct(results)
         if not results[0].ok:  # the best fit's alignment fails its checks: a rival alone is no better
-            return results[0]
+            hidden = self._hidden_by_robots(scan, level) if results[0].reason.startswith("alignment") else ""
+            return scan.failed(hidden) if hidden else results[0]
         if len(rivals) > 1:
             return self._unless_all_moved(agreed(rivals), scan)
         result = rivals[0]
@@ -289,6 +290,21 @@ class InspectionPipeline:
             settings=self.robot_settings,
         )
         scan.timer.lap("robots")
+
+    def _hidden_by_robots(self, scan: _Scan, pose: Array) -> str:
+        """Why a scan that failed to align could not show S_a: the other robots stand in front of
+        most of it (seen from `pose`), or "" when they do not (then the alignment's failure stands)."""
+        if scan.robots is None or self.paper:
+            return ""
+        virtual = self._virtual_scan(scan, pose)
+        on_s_a = virtual.tile >= 0
+        front = self._robots_in_front(scan, virtual, pose)
+        if front is None or not on_s_a.any():
+            return ""
+        share = float(front[on_s_a].mean())
+        if share < self.settings.hidden_by_robots:
+            return ""
+        return f"S_a not in view: the other robots stand in front of {share:.0%} of it"
 
     def _search_margin(self, pose: Array) -> float:
         """How far around S_a's box points may lie before the x, y, yaw search (prior errors)."""
