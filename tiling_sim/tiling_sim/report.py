@@ -207,7 +207,8 @@ def makespan_lines(result: ExperimentResult) -> list[str]:
     lines += network_lines(result)
     duplicates = sum(len(duplicate_placements(r)) for r in result.records)
     lost = sum(len(lost_placements(r)) for r in result.records)
-    lines.append(f"Tiles placed twice (or carried to a place already taken): {duplicates}; tiles lost: {lost}")
+    lines.append(f"Tiles placed twice (or carried to a place already taken): {duplicates}; "
+                 f"tiles not in place when an unfinished trial ended: {lost}")
     return lines
 
 
