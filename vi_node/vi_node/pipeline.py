@@ -63,7 +63,7 @@ from vi_node.rival_fits import agreed, distinct
 from vi_node.robot_mask import RobotBoxes, inside_robots, near_robot_points, tall_things
 from vi_node.scan_result import ScanResult, TileResult
 from vi_node.type_hypotheses import rival_tiles, tiles_box, type_votes
-from vi_node.view_agreement import DepthView, view_agreement
+from vi_node.view_agreement import DepthView, climb, view_agreement
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -231,7 +231,10 @@ class InspectionPipeline:
             hidden = self._hidden_by_robots(scan, level) if results[0].reason.startswith("alignment") else ""
             return scan.failed(hidden) if hidden else results[0]
         if len(rivals) > 1:
-            return self._unless_all_moved(agreed(rivals), scan)
+            settled = self._settle_rivals(scan, rivals)
+            if settled is None:
+                return self._unless_all_moved(agreed(rivals), scan)
+            rivals = [settled]
         result = rivals[0]
         if self.paper or not result.moved_tiles():
             return result
@@ -405,6 +408,25 @@ class InspectionPipeline:
                 starts.append(elsewhere)
         scan.timer.lap("view agreement")
         return starts, ""
+
+    def _settle_rivals(self, scan: _Scan, rivals: list[ScanResult]) -> ScanResult | None:
+        """The alignment from the one rival fit the depth image bears out clearly best once each is
+        moved uphill on the view agreement (`view_agreement.climb`), or None while two stay close
+        (then only the tiles all rivals agree on are judged)."""
+        s = self.settings
+        climbed = [climb(r.camera_pose, lambda pose: self._agreement(scan, pose)) for r in rivals]  # type: ignore[arg-type]
+        scan.timer.lap("climb")
+        best = max(range(len(climbed)), key=lambda k: climbed[k][1])
+        pose, score = climbed[best]
+        near = score - (1.0 - s.ambiguity) * abs(score)
+        for k, (other, other_score) in enumerate(climbed):
+            shift, turn = pose_error(other, pose)
+            if k != best and other_score >= near and (shift > 0.03 or turn > math.radians(2.0)):
+                return None
+        result = self._classify_from(scan, pose)
+        if not result.ok or self._agreement(scan, result.camera_pose) < near:  # type: ignore[arg-type]
+            return None
+        return result
 
     def _short_fit(self, scan: _Scan, start: Array, sample: Array, pose: Array) -> tuple[int, Array, Array] | None:
         """(points of `sample` within 3 mm of S_a's surfaces, `start`, the pose a short ICP refines

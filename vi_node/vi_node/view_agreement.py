@@ -14,6 +14,7 @@ in front of S_a (robots, clutter, tiles not yet reported) and blanks say nothing
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,3 +72,31 @@ def view_agreement(
         agree = np.abs(difference) <= tolerance
         behind = difference > tolerance
     return ViewAgreement(int(np.count_nonzero(agree)), int(np.count_nonzero(behind)))
+
+
+def climb(pose: Array, score: Callable[[Array], float], shift: float = 0.01, turn: float = np.radians(0.5),
+          max_steps: int = 12) -> tuple[Array, float]:
+    """`pose` moved step by step (`shift` m in x or y, `turn` rad of yaw about the camera) while the
+    view agreement `score` rises; the pose it stops at and its score. ICP on a view of few side
+    faces can stop a couple of centimetres off along them; the pixels it sees through then pull
+    the pose back."""
+    best, best_score = pose, score(pose)
+    for _ in range(max_steps):
+        moves = [_moved(best, dx, dy, 0.0) for dx, dy in ((shift, 0), (-shift, 0), (0, shift), (0, -shift))]
+        moves += [_moved(best, 0.0, 0.0, dyaw) for dyaw in (turn, -turn)]
+        scores = [score(move) for move in moves]
+        top = int(np.argmax(scores))
+        if scores[top] <= best_score:
+            break
+        best, best_score = moves[top], scores[top]
+    return best, best_score
+
+
+def _moved(pose: Array, dx: float, dy: float, dyaw: float) -> Array:
+    """`pose` shifted by (dx, dy) in the map frame and turned by `dyaw` about the vertical through its origin."""
+    c, s = np.cos(dyaw), np.sin(dyaw)
+    moved = pose.copy()
+    moved[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ pose[:3, :3]
+    moved[0, 3] += dx
+    moved[1, 3] += dy
+    return moved
