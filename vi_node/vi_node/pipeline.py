@@ -17,7 +17,12 @@ then the classification of the mode chosen at start-up:
   its place; a tile found misplaced is judged once more after an alignment that leaves it out. ICP runs on a
   subsample of the candidates against Open3D's BVH instead of the patch hierarchy.
 
-Every stage is timed. A scan that cannot be aligned gives no tile states at all, never wrong ones.
+In default mode, fits from different hypotheses that explain the scan nearly as well ("rivals": a
+repetitive structure, a view of a few faces) each climb the view agreement; one the depth image then
+bears out clearly best is aligned from alone, otherwise only the tiles all rivals agree on are judged.
+
+Every stage is timed. A scan that cannot be aligned gives no tile states at all, never wrong ones;
+one that cannot show S_a (the other robots stand in front of it) says so.
 The models of an S_a (patches, ray casting scene, coarse search grid) are built once and reused.
 Fusion across scans (`fusion`) is left to the caller, which knows which scans belong together.
 """
