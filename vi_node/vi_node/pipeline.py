@@ -407,8 +407,7 @@ class InspectionPipeline:
         near_agreement = agreement - (1.0 - s.ambiguity) * abs(agreement)
         starts = [start]  # the full ICP starts from the hypotheses, not from these short refinements
         for other, elsewhere, refined_elsewhere in fits[1:]:
-            shift, turn = pose_error(refined_elsewhere, refined)
-            if (shift > 0.03 or turn > math.radians(2.0)) and (
+            if _apart(refined_elsewhere, refined) and (
                     other >= s.ambiguity * count or self._agreement(scan, refined_elsewhere) >= near_agreement):
                 starts.append(elsewhere)
         scan.timer.lap("view agreement")
@@ -424,10 +423,9 @@ class InspectionPipeline:
         best = max(range(len(climbed)), key=lambda k: climbed[k][1])
         pose, score = climbed[best]
         near = score - (1.0 - s.ambiguity) * abs(score)
-        for k, (other, other_score) in enumerate(climbed):
-            shift, turn = pose_error(other, pose)
-            if k != best and other_score >= near and (shift > 0.03 or turn > math.radians(2.0)):
-                return None
+        if any(k != best and other_score >= near and _apart(other, pose)
+               for k, (other, other_score) in enumerate(climbed)):
+            return None
         result = self._classify_from(scan, pose)
         if not result.ok or self._agreement(scan, result.camera_pose) < near:  # type: ignore[arg-type]
             return None
@@ -931,6 +929,12 @@ def _cloud_problem(cloud: object) -> str:
     if np.count_nonzero(np.isfinite(cloud[::4, ::4, 2])) == 0:
         return "bad cloud: no valid points (all NaN or empty)"
     return ""
+
+
+def _apart(pose: Array, other: Array) -> bool:
+    """Whether two fits of a scan are rivals rather than one: 3 cm or 2 degrees apart."""
+    shift, turn = pose_error(pose, other)
+    return shift > 0.03 or turn > math.radians(2.0)
 
 
 def _shifted(pose: Array, shift: Array) -> Array:

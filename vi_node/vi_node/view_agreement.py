@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from vi_node.camera_model import PinholeCamera
 from vi_node.evidence import EvidenceSettings, depth_tolerance
+from vi_node.icp import yaw_shift_transform
 from vi_node.raycast import VirtualScene
 
 Array = NDArray[np.float64]
@@ -80,10 +81,11 @@ def climb(pose: Array, score: Callable[[Array], float], shift: float = 0.01, tur
     view agreement `score` rises; the pose it stops at and its score. ICP on a view of few side
     faces can stop a couple of centimetres off along them; the pixels it sees through then pull
     the pose back."""
+    steps = [(0.0, (dx, dy)) for dx, dy in ((shift, 0.0), (-shift, 0.0), (0.0, shift), (0.0, -shift))]
+    steps += [(dyaw, (0.0, 0.0)) for dyaw in (turn, -turn)]
     best, best_score = pose, score(pose)
     for _ in range(max_steps):
-        moves = [_moved(best, dx, dy, 0.0) for dx, dy in ((shift, 0), (-shift, 0), (0, shift), (0, -shift))]
-        moves += [_moved(best, 0.0, 0.0, dyaw) for dyaw in (turn, -turn)]
+        moves = [yaw_shift_transform(dyaw, best[:3, 3], np.array(step)) @ best for dyaw, step in steps]
         scores = [score(move) for move in moves]
         top = int(np.argmax(scores))
         if scores[top] <= best_score:
@@ -91,12 +93,3 @@ def climb(pose: Array, score: Callable[[Array], float], shift: float = 0.01, tur
         best, best_score = moves[top], scores[top]
     return best, best_score
 
-
-def _moved(pose: Array, dx: float, dy: float, dyaw: float) -> Array:
-    """`pose` shifted by (dx, dy) in the map frame and turned by `dyaw` about the vertical through its origin."""
-    c, s = np.cos(dyaw), np.sin(dyaw)
-    moved = pose.copy()
-    moved[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ pose[:3, :3]
-    moved[0, 3] += dx
-    moved[1, 3] += dy
-    return moved
