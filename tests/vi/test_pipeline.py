@@ -269,3 +269,23 @@ def test_everything_removed_gives_no_states() -> None:
     cloud = KinectSimulator(seed=21).scan(scene.kinect_scene, view.camera)
     result = InspectionPipeline(paper, None, PAPER).inspect(cloud, OverheadPose(*view.overhead))
     assert not result.ok and result.tiles == []
+
+
+def test_a_removed_tile_facing_the_camera_neither_pulls_the_alignment_off_nor_hides() -> None:
+    """Trapezoid 7 gone from S_a = {1, 3, 7}, seen from its side: the camera sees through all of its
+    place. Counted against the pose as a whole, those pixels made the alignment slide the long
+    rectangles into its place (or fail "beyond belief"); a tile may be gone (`view_agreement`)."""
+    paper = structure()
+    scene = Scene(paper, (1, 3), ())
+    simulator = KinectSimulator(seed=9)
+    pipeline = InspectionPipeline(paper, (1, 3, 7), DEFAULT)
+    rng = np.random.default_rng(5)
+    for bearing in np.radians([20.0, -20.0, 40.0, -40.0]):
+        view = view_from(scene.centre, bearing, rng.uniform(0.9, 1.2), rng)
+        result = pipeline.inspect(simulator.scan(scene.kinect_scene, view.camera), OverheadPose(*view.overhead))
+        assert result.ok, result.reason
+        shift, turn = pose_error(result.camera_pose, view.camera)
+        assert shift <= 0.015 and turn <= math.radians(1.0)
+        assert {t.tile_id: t.state for t in result.tiles} == {
+            1: TileState.PRESENT, 3: TileState.PRESENT, 7: TileState.MISSING
+        }

@@ -17,7 +17,7 @@ from vi_node.icp import yaw_shift_transform
 from vi_node.inspection_settings import InspectionSettings
 from vi_node.pipeline import InspectionPipeline
 from vi_node.pose_prior import pose_error
-from vi_node.view_agreement import DepthView, climb, view_agreement
+from vi_node.view_agreement import DepthView, ViewAgreement, climb, view_agreement
 
 RANGES = (0.5, 4.5)
 
@@ -59,8 +59,16 @@ def test_masked_pixels_and_blanks_say_nothing(first_layer) -> None:  # type: ign
     everything = np.ones(view.cloud.shape[:2], dtype=bool)
     masked = DepthView(view.cloud, view.camera, everything)
     blank = DepthView(np.full_like(view.cloud, np.nan), view.camera)
-    assert _agreement(pipeline, masked, truth) == _agreement(pipeline, blank, truth)
-    assert _agreement(pipeline, blank, truth).agree == _agreement(pipeline, blank, truth).behind == 0
+    for agreement in (_agreement(pipeline, masked, truth), _agreement(pipeline, blank, truth)):
+        assert agreement.agree == agreement.behind == 0 and agreement.score(3.0) == 0.0
+
+
+def test_a_tile_seen_through_costs_the_pose_at_most_nothing() -> None:
+    """A tile may be gone: its seen-through pixels cancel its own agreeing ones, not the other tiles'."""
+    agreement = ViewAgreement(np.array([120, 10, 0]), np.array([2, 300, 0]))
+    assert agreement.agree == 130 and agreement.behind == 302
+    assert agreement.score(1.0) == 118.0
+    assert agreement.score(3.0) == 114.0
 
 
 @pytest.mark.parametrize("turn, shift", [(0.0, (0.0, 0.025)), (0.0, (-0.02, 0.01)), (1.0, (0.0, 0.02))])
