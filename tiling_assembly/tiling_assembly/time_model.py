@@ -171,11 +171,15 @@ def _stop_share(structure: Structure, base: BaseGeometry) -> float:
         return 0.0
     probes = stops[:: max(1, count // 512)]
     reach = np.asarray(base.base_size) + base.clearance
-    overlaps = [  # 64 probes at a time: 10,000 stops stay a few MB
-        np.count_nonzero(np.all(np.abs(block[:, None, :] - stops[None, :, :]) < reach, axis=-1)) - len(block)
-        for block in np.array_split(probes, max(1, len(probes) // 64))
-    ]
-    return float(sum(overlaps) / (len(probes) * (count - 1)))
+    # stops sorted by x: each probe compares y only within its x window
+    by_x = stops[np.argsort(stops[:, 0], kind="stable")]
+    first = np.searchsorted(by_x[:, 0], probes[:, 0] - reach[0], side="right")
+    last = np.searchsorted(by_x[:, 0], probes[:, 0] + reach[0], side="left")
+    overlaps = sum(
+        int(np.count_nonzero(np.abs(by_x[start:stop, 1] - probe[1]) < reach[1])) - 1
+        for probe, start, stop in zip(probes, first, last, strict=True)
+    )
+    return float(overlaps / (len(probes) * (count - 1)))
 
 
 @lru_cache(maxsize=8)
