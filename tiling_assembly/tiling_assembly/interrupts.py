@@ -19,6 +19,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
@@ -31,6 +32,10 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
     if signalled.is_set():
         return  # stopping already: Ctrl-C pressed twice, or launch's SIGTERM after its SIGINT
     signalled.set()
+    # the KeyboardInterrupt may land between a coroutine's creation and its await (rclpy's
+    # executor: "coroutine 'await_or_execute' was never awaited" when it is collected): expected
+    # of a stop, like the unraisable KeyboardInterrupt below
+    warnings.filterwarnings("ignore", message="coroutine .* was never awaited", category=RuntimeWarning)
     raise KeyboardInterrupt
 
 
