@@ -166,6 +166,29 @@ def test_robots_beside_the_structure_are_left_out_when_their_poses_are_given(see
             assert tile.state != TileState.MISSING, tile
 
 
+@pytest.mark.parametrize("seed", [3, 5, 7])
+def test_tiles_in_a_robots_hand_do_not_pull_the_alignment_onto_their_places(seed: int) -> None:
+    """Early in the build, S_a = {3, 7} while robots place 1 and 2 (not there yet) beside them, at
+    the overhead pose's error bounds: the alignment leaves the tiles in hand out. Aligned against
+    them too, these views slid 3-4 cm (or failed), and in the team such a slide called tile 3
+    missing."""
+    paper = structure()
+    rng = np.random.default_rng(seed)
+    scene = Scene(paper, (3, 7), ())
+    scene.robots = robots_beside(paper, scene.expected, rng, 2)
+    settings = replace(ViewSettings(), errors_at_bound=True, distance=(0.9, 1.2))
+    view = random_view(scene.centre, rng, settings, scene.robots)
+    cloud = KinectSimulator(seed=seed).scan(scene.kinect_scene, view.camera)
+    pipeline = InspectionPipeline(paper, (3, 7), DEFAULT)
+    pipeline.set_expected((3, 7), in_hand=(1, 2))
+    result = pipeline.inspect(cloud, OverheadPose(*view.overhead), [OverheadPose(*r) for r in view.robots])
+    assert result.ok, result.reason
+    shift, turn = pose_error(result.camera_pose, view.camera)
+    assert shift <= 0.01 and turn <= math.radians(1.0)
+    assert sorted(result.by_id()) == [3, 7]
+    assert all(t.state in (TileState.PRESENT, TileState.OCCLUDED) for t in result.tiles), result.tiles
+
+
 @pytest.mark.parametrize("bearing", [150.0, 90.0])
 def test_tiles_beside_a_robot_are_judged_when_its_overhead_pose_errs_towards_them(bearing: float) -> None:
     """A robot 3 cm from the structure, its overhead pose 5 cm and 10 degrees off towards it: the

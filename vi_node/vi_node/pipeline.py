@@ -182,6 +182,7 @@ class InspectionPipeline:
         self._models: dict[tuple[int, ...], ExpectedModel] = {}
         self.in_hand: frozenset[int] = frozenset()
         self.model = self._model_for(structure.tile_ids if expected is None else expected)
+        self.aligning = self.model
 
     @property
     def expected_ids(self) -> tuple[int, ...]:
@@ -190,11 +191,14 @@ class InspectionPipeline:
 
     def set_expected(self, expected: Iterable[int], in_hand: Iterable[int] = ()) -> None:
         """Change S_a (models are cached per S_a, so going back and forth is cheap). Tiles `in_hand`
-        (a robot is placing them: `tiles_in_hand`) may be there or not: the model holds them, the
-        result says nothing about them."""
+        (a robot is placing them: `tiles_in_hand`) may be there or not: the model judged against
+        holds them (they may hide others), the result says nothing about them, and the alignment
+        leaves them out (`aligning`): mostly they are not there yet, and two of them beside a
+        small S_a slid its fit by a tile's width onto their places."""
         expected = set(expected) & set(self.structure.tiles)
         self.in_hand = frozenset(set(in_hand) & set(self.structure.tiles)) - expected
         self.model = self._model_for(expected | self.in_hand)
+        self.aligning = self._model_for(expected) if self.in_hand and expected else self.model
 
     def _model_for(self, expected: Iterable[int]) -> ExpectedModel:
         key = tuple(sorted(set(expected) & set(self.structure.tiles)))
@@ -316,7 +320,7 @@ class InspectionPipeline:
 
     def _search_margin(self, pose: Array) -> float:
         """How far around S_a's box points may lie before the x, y, yaw search (prior errors)."""
-        s, model = self.settings, self.model
+        s, model = self.settings, self.aligning
         reach = float(np.linalg.norm(0.5 * (model.low + model.high) - pose[:3, 3]))
         return s.box_margin + s.coarse_shift_range + s.coarse_yaw_range * (reach + 0.3)
 
@@ -326,7 +330,7 @@ class InspectionPipeline:
         the one that puts most points onto S_a's surfaces first, and after it those that put
         nearly as many there from elsewhere (1 cm cells cannot tell a degree of yaw from a
         centimetre of shift, and a view of a few faces has more than one fit: `rival_fits`)."""
-        s, model = self.settings, self.model
+        s, model = self.settings, self.aligning
         if not s.coarse_search or model.coarse is None:
             return [pose], ""
         # the 1 cm voxels of the search need no more than every other pixel (default mode)
@@ -376,7 +380,7 @@ class InspectionPipeline:
 
     def _agreement(self, scan: _Scan, pose: Array) -> float:
         """How well the depth image bears out S_a seen from `pose` (`view_agreement`)."""
-        s, model = self.settings, self.model
+        s, model = self.settings, self.aligning
         view = DepthView(scan.cloud, scan.camera, scan.masked)
         agreement = view_agreement(view, model.scene, pose, (model.low, model.high), (s.min_range, s.max_range),
                                    self.evidence_settings)
@@ -394,7 +398,7 @@ class InspectionPipeline:
         fits = [fit for fit in (self._short_fit(scan, start, sample, pose) for start in poses) if fit is not None]
         if fits:
             best = max(fits, key=lambda fit: fit[0])[2]
-            moved = (self._short_fit(scan, _shifted(best, shift), sample, pose) for shift in self.model.shifts)
+            moved = (self._short_fit(scan, _shifted(best, shift), sample, pose) for shift in self.aligning.shifts)
             fits += [fit for fit in moved if fit is not None]
         scan.timer.lap("hypotheses")
         if not fits:
@@ -435,7 +439,7 @@ class InspectionPipeline:
         """(points of `sample` within 3 mm of S_a's surfaces, `start`, the pose a short ICP refines
         it to); None when too few of them fall in S_a's box from `start`. (Moved by a period, the
         best fit needs the ICP too: counted as it is, it let twice as many false missing calls by.)"""
-        s, model = self.settings, self.model
+        s, model = self.settings, self.aligning
         move = start @ np.linalg.inv(pose)
         moved = sample @ move[:3, :3].T + move[:3, 3]
         inside = np.all((moved >= model.low - s.box_margin) & (moved <= model.high + s.box_margin), axis=1)
@@ -549,7 +553,8 @@ class InspectionPipeline:
             self._judge_placement(nearest[0], pose, result, suspects, scan)
             scan.timer.lap("misplacement")
         moved = [self.model.tile_ids.index(t) for t in result.moved_tiles()]
-        doubt = _doubtful(evidence, self.settings, moved)
+        in_hand = [self.model.tile_ids.index(t) for t in self.in_hand]
+        doubt = _doubtful(evidence, self.settings, moved, in_hand)
         if doubt and not moved:  # with tiles found moved, the alignment without them decides
             return scan.failed(f"alignment doubtful: {doubt}")
         result.doubt = doubt
@@ -587,7 +592,7 @@ class InspectionPipeline:
     def _correspondences(self, camera_position: Array) -> Callable[[Array, float], Correspondences]:
         """Projections onto S_a: the paper's patch hierarchy (faces turned away left out) in paper
         mode; Open3D's BVH closest points in default mode (same answer, a fraction of the time)."""
-        model = self.model
+        model = self.aligning
         if self.paper:
 
             def by_patches(points: Array, cut: float) -> Correspondences:
@@ -897,22 +902,24 @@ def _either(first: Mask | None, second: Mask | None) -> Mask | None:
     return first | second
 
 
-def _doubtful(evidence: TileEvidence, settings: InspectionSettings, moved: Sequence[int] = ()) -> str:
+def _doubtful(evidence: TileEvidence, settings: InspectionSettings, moved: Sequence[int] = (),
+              in_hand: Sequence[int] = ()) -> str:
     """Why the pixel evidence says the scan is misaligned, or "". The pixels measured where S_a has
     a surface (agreeing with a tile, or fitting both "there" and "gone") show the alignment fits. A
     scan that contradicts most of what S_a predicts is misaligned (a fragment of the structure
     fitted to the wrong place), unless at least two tiles clearly fit to anchor it (then most of S_a
     is simply gone). So is one in which several tiles are each partly there and partly not: a tile
     is there or gone, and one moved tile splits one tile, not several (tiles found `moved`, by
-    index, are left out)."""
+    index, are left out; so are the tiles `in_hand`, by index: they may not be there yet)."""
     fits = evidence.agree + evidence.ambiguous
     seen = fits + evidence.against
+    fits[list(in_hand)], seen[list(in_hand)] = 0, 0
     anchors = (fits >= 4 * settings.min_observed_pixels) & (fits >= settings.present_fraction * seen)
     if seen.sum() >= settings.min_observed_pixels and fits.sum() < settings.min_agreement * seen.sum():
         if anchors.sum() < 2:
             return f"the scan agrees with only {fits.sum() / seen.sum():.0%} of what S_a predicts"
     decisive = evidence.observed >= settings.min_observed_pixels
-    decisive[list(moved)] = False
+    decisive[list(moved) + list(in_hand)] = False
     split = decisive & (np.minimum(evidence.agree, evidence.against) >= 0.25 * evidence.observed)
     if split.sum() >= 2 and split.sum() >= 0.25 * decisive.sum():
         return f"{int(split.sum())} of {int(decisive.sum())} tiles seen are each partly there and partly not"
