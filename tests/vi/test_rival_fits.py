@@ -6,7 +6,7 @@ import numpy as np
 
 from vi_node.classify import TileState
 from vi_node.evidence import EvidenceSettings, TileEvidence, decide
-from vi_node.rival_fits import agreed, distinct
+from vi_node.rival_fits import agreed, distinct, untold
 from vi_node.scan_result import ScanResult, TileResult
 
 
@@ -82,3 +82,17 @@ def test_rivals_that_ended_at_one_pose_count_once_and_failed_ones_not_at_all():
 
     assert kept == [best, elsewhere]
     assert agreed(kept[:1]) is best
+
+
+def test_tiles_left_untold_are_undetermined_with_no_evidence_and_no_placement_verdict():
+    """Tile 2 seems moved with only tile 1 in place beside it: both untold; tile 3 keeps everything, so
+    fusion over scans neither sums their pixels nor takes a flag or an "in place" from this scan."""
+    one = result(0.0, [(200, 5, 210), (150, 20, 190), (120, 0, 130)], moved={1: False, 2: True, 3: False})
+    told = untold(one, [2, 1], "tile 2 seems moved")
+    assert [t.state for t in told.tiles] == [TileState.OCCLUDED, TileState.OCCLUDED, TileState.PRESENT]
+    assert told.evidence_states.tolist() == [TileState.OCCLUDED, TileState.OCCLUDED, TileState.PRESENT]
+    assert told.evidence.agree.tolist() == [0, 0, 120] and told.evidence.see_through.tolist() == [0, 0, 0]
+    assert told.evidence.judged.tolist() == [210, 190, 130]  # how much of it was in view still counts
+    assert told.tiles[1].offset == (0.0, 0.0, 0.0) and told.tiles[2].physical == 120
+    assert set(told.misplacement) == {3} and told.notes[-1] == "tile 2 seems moved"
+    assert [t.state for t in one.tiles] == [TileState.PRESENT, TileState.PRESENT, TileState.PRESENT]  # not changed

@@ -14,8 +14,11 @@ verdict also needs the latest view not to be split: when a scan's pixels of the 
 the older views do not vouch for it and it is undetermined until a view settles it. A scan that
 glimpses a decided tile with too few pixels to lean either way leaves it as it is: its stale decision
 is not reported as a new observation. A tile that is (re)placed starts afresh. A tile found
-misplaced stays so until a scan sees it present and in place, or sees its place empty without
-finding it moved nearby (then it is missing); a later scan that does not flag it
+misplaced stays so until two scans see it present and in place, or one sees its place empty without
+finding it moved nearby (then it is missing): a tile does not move back onto its place by itself
+(a repair re-places it, and it starts afresh), so one view of it in place after a flag leaves it
+undetermined until another agrees (a cap turned 34 degrees, flagged from two bearings, was fused
+present on the third, where its turn hid behind its neighbour's faces); a later scan that does not flag it
 itself reports it with the counts of the scan that did, so that the flag is not taken for a new,
 independent observation (`scan_freshness`): one misaligned scan flagged an octagon moved 3.6 cm, and
 every later view repeated it until the auction node had it confirmed from two camera positions.
@@ -51,6 +54,7 @@ class FusedTile:
     shown: bool = False  # one scan's agreeing pixels were a fair share of the tile's view (`evidence.shown`)
     flagged_counts: tuple[int, int, int] | None = None  # (agree, see-through, scans) reported when last flagged
     seen_type: str = ""  # when misplaced: the type that lies there instead, if a scan could tell
+    unflagged_once: bool = False  # flagged misplaced, then seen in place by one scan: undetermined until another
 
     def saw(self, mine: TileEvidence, settings: EvidenceSettings) -> None:
         """Note the size of one more scan's view of the tile."""
@@ -126,13 +130,17 @@ class TileFusion:
                 if flagged:
                     fused.misplaced, fused.offset, fused.residual = True, offset, residual
                     fused.seen_type = (seen_types or {}).get(tile_id, "")
-                elif scan_state == TileState.PRESENT:  # seen in place: whatever moved it was put right
+                    fused.unflagged_once = False
+                elif scan_state == TileState.PRESENT:  # seen in place: put right once a second view agrees
+                    fused.unflagged_once = fused.misplaced
                     fused.misplaced, fused.offset, fused.flagged_counts = False, (0.0, 0.0, 0.0), None
+                    fused.seen_type = ""
             if scan_state == TileState.MISSING and not (misplacement and misplacement.get(tile_id, (False,))[0]):
                 # its place seen empty, and nothing of it found moved nearby: missing, whatever an
                 # older view flagged (a removed trapezoid flagged once stayed "misplaced" for 2 minutes,
                 # and neither its re-placement nor a repair was ever asked for)
                 fused.misplaced, fused.offset, fused.flagged_counts = False, (0.0, 0.0, 0.0), None
+                fused.unflagged_once = False
             self.tiles[tile_id] = fused
         return {t: self.tiles[t] for t in ids}
 
@@ -166,6 +174,8 @@ class TileFusion:
             return TileState.UNKNOWN
         if fused.misplaced:
             return TileState.MISPLACED
+        if fused.unflagged_once:
+            return TileState.OCCLUDED
         return fused.state
 
     def unresolved(self, tile_ids: Iterable[int]) -> list[int]:

@@ -64,7 +64,7 @@ from vi_node.periodicity import periodic_shifts
 from vi_node.pose_hypotheses import DepthImage, fitted_pose_explains, pixels_at_fitted_pose
 from vi_node.pose_prior import CameraMount, OverheadPose, camera_prior, pose_error
 from vi_node.raycast import VirtualScan, VirtualScene
-from vi_node.rival_fits import agreed, distinct
+from vi_node.rival_fits import agreed, distinct, untold
 from vi_node.robot_mask import RobotBoxes, inside_robots, near_robot_points, tall_things
 from vi_node.scan_result import ScanResult, TileResult
 from vi_node.type_hypotheses import rival_tiles, tiles_box, type_votes
@@ -759,7 +759,9 @@ class InspectionPipeline:
                 surfaces=model.scene,
                 solid=[t.state != TileState.MISSING for t in result.tiles],
                 disturbed=[t.see_through + t.in_front >= 1 for t in result.tiles],
-                suspects=(*suspects, *self._disturbed_tiles(result)),
+                # blanks where a return was due count against a tile too: a cap turned 25 degrees had
+                # 10 pixels in front of its faces and 11 such blanks, and its first step was 1.5 degrees
+                suspects=(*suspects, *self._disturbed_tiles(result, blank=True)),
                 by_robots=None if scan.robots is None else inside_robots(
                     points.points, scan.robots.robots, self.robot_settings),
             ),
@@ -882,6 +884,8 @@ class InspectionPipeline:
             return scan.failed(f"alignment doubtful: {result.doubt}")
         judged = len(result.misplacement)
         moved = result.moved_tiles()
+        if len(moved) == 1:
+            return self._unless_unanchored(result, moved[0])
         if len(moved) < 2 or len(moved) < 0.25 * judged:
             return result
         together = f"alignment doubtful: {len(moved)} of {judged} tiles seem moved together"
@@ -894,6 +898,23 @@ class InspectionPipeline:
         if missing + len(moved) >= 0.5 * (len(states) - states.count(TileState.OCCLUDED)) and anchors < 2:
             return scan.failed(f"alignment doubtful: {len(moved)} tiles seem moved and {missing} missing")
         return result
+
+    def _unless_unanchored(self, result: ScanResult, moved: int) -> ScanResult:
+        """A tile found moved with fewer than two tiles judged in place beside it: the alignment rests
+        on those few, so the scan cannot tell the tile moved from the tile under the alignment moved
+        (and the scan with it). Neither is judged (`rival_fits.untold`), rather than the wrong one
+        flagged and the moved one shown in place: a block shifted 2.9 cm on the block under it, the
+        other pier gone, took the alignment with it, and the block in place was flagged. A tile
+        another shape lies in the place of is told by its pixels, not by a motion: its flag stands."""
+        offset = result.misplacement[moved][1]
+        if not any(offset):
+            return result
+        anchors = [t.tile_id for t in result.tiles if t.state is TileState.PRESENT and t.tile_id in result.misplacement]
+        if len(anchors) >= 2:
+            return result
+        beside = f"only tile {anchors[0]}" if anchors else "no tile"
+        return untold(result, [moved, *anchors], f"tile {moved} seems moved, with {beside} judged in place "
+                      "beside it to tell it from a misalignment: left undetermined")
 
 
 def _either(first: Mask | None, second: Mask | None) -> Mask | None:

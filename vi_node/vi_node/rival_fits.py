@@ -16,6 +16,10 @@ the true pose's verdict too. A misplacement all of them see is kept; one that a 
 away is dropped. A rival whose alignment fails its checks (a correction beyond the overhead
 errors, pixels that contradict S_a) is left out; when the best fit fails them, the scan gives no
 states at all (the caller's rule).
+
+The same holds without a second fit when one tile is found moved with fewer than two tiles in place
+beside it: the alignment rests on the few tiles it sees, so "that tile moved" and "the tile the
+alignment rests on moved, and the scan with it" explain the points alike (`untold`).
 """
 
 from __future__ import annotations
@@ -85,6 +89,27 @@ def agreed(rivals: Sequence[ScanResult]) -> ScanResult:
         evidence_states=evidence_states,
         misplacement=misplacement,
         rivals=len(rivals),
+    )
+
+
+def untold(result: ScanResult, tile_ids: Sequence[int], note: str) -> ScanResult:
+    """`result` with `tile_ids` undetermined, as rivals that disagree leave a tile: no decisive pixels
+    for fusion, and no misplacement verdict either way (neither a flag nor "in place")."""
+    index = [k for k, t in enumerate(result.tile_ids) if t in tile_ids]
+    same = np.ones(len(result.tile_ids), dtype=bool)
+    same[index] = False
+    evidence_states = None
+    if result.evidence_states is not None:
+        evidence_states = np.where(same, result.evidence_states, int(TileState.OCCLUDED)).astype(np.int64)
+    return replace(
+        result,
+        tiles=[t if t.tile_id not in tile_ids else
+               replace(t, state=TileState.OCCLUDED, physical=0, see_through=0, blank=0, offset=(0.0, 0.0, 0.0))
+               for t in result.tiles],
+        evidence=None if result.evidence is None else _least_evidence([result.evidence], same),
+        evidence_states=evidence_states,
+        misplacement={t: entry for t, entry in result.misplacement.items() if t not in tile_ids},
+        notes=[*result.notes, note],
     )
 
 
