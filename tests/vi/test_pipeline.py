@@ -13,8 +13,9 @@ from vi_helpers import structure
 from tiling_sim.inspection_scenarios import Scene, ViewSettings, random_view, robots_beside, view_from
 from tiling_sim.kinect import KINECT_V1_DEPTH, ClutterBox, KinectScene, KinectSimulator
 from vi_node.classify import TileState
+from vi_node.evidence import TileEvidence
 from vi_node.inspection_settings import InspectionSettings
-from vi_node.pipeline import InspectionPipeline, InspectionStoppedError
+from vi_node.pipeline import InspectionPipeline, InspectionStoppedError, _doubtful
 from vi_node.pose_prior import OverheadPose, pose_error
 
 PAPER = InspectionSettings().with_values({"mode": "paper"})
@@ -312,3 +313,20 @@ def test_a_removed_tile_facing_the_camera_neither_pulls_the_alignment_off_nor_hi
         assert {t.tile_id: t.state for t in result.tiles} == {
             1: TileState.PRESENT, 3: TileState.PRESENT, 7: TileState.MISSING
         }
+
+
+def test_the_pixels_of_a_tile_found_moved_do_not_vouch_for_the_alignment() -> None:
+    """A scan 4.6 cm off saw little but long rectangle 12: it fitted the scan to it, then found it of
+    another shape there and called the two tiles beside it missing. Rectangle 12's agreeing pixels
+    were most of what bore the alignment out; left out, the scan agrees with 12% of S_a's view and is
+    doubted. Two tiles clearly in place anchor a scan whatever a moved one says."""
+    settings = InspectionSettings()
+    zeros = np.zeros(3, dtype=np.int64)
+    seen_through = np.array([30, 30, 85])
+    evidence = TileEvidence(agree=np.array([0, 2, 140]), see_through=seen_through, in_front=zeros,
+                            no_return=zeros, judged=np.array([40, 40, 260]), virtual=np.array([40, 40, 260]))
+    assert _doubtful(evidence, settings) == ""
+    assert "agrees with only" in _doubtful(evidence, settings, moved=[2])
+    anchored = replace(evidence, agree=np.array([150, 160, 140]), see_through=np.array([5, 5, 85]),
+                       judged=np.array([160, 170, 260]), virtual=np.array([160, 170, 260]))
+    assert _doubtful(anchored, settings, moved=[2]) == ""

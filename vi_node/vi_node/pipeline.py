@@ -242,7 +242,7 @@ class InspectionPipeline:
         if len(rivals) > 1:
             settled = self._settle_rivals(scan, rivals)
             if settled is None:
-                return self._unless_all_moved(agreed(rivals), scan)
+                return self._unless_all_moved(self._agreed(rivals), scan)
             rivals = [settled]
         result = rivals[0]
         if self.paper or not result.moved_tiles():
@@ -416,6 +416,18 @@ class InspectionPipeline:
                 starts.append(elsewhere)
         scan.timer.lap("view agreement")
         return starts, ""
+
+    def _agreed(self, rivals: list[ScanResult]) -> ScanResult:
+        """What every rival says (`rival_fits.agreed`), doubted as one alignment's verdicts are: with
+        the tiles they disagree on left out, the pixels left must still bear S_a out (three fits up to
+        10 cm apart, robots hiding all but two tiles, each passed alone on the tile it sat on; all they
+        shared was a present long rectangle seen through, and it was called missing)."""
+        result = agreed(rivals)
+        if result.evidence is not None:
+            moved = [self.model.tile_ids.index(t) for t in result.moved_tiles()]
+            in_hand = [self.model.tile_ids.index(t) for t in self.in_hand]
+            result.doubt = result.doubt or _doubtful(result.evidence, self.settings, moved, in_hand)
+        return result
 
     def _settle_rivals(self, scan: _Scan, rivals: list[ScanResult]) -> ScanResult | None:
         """The alignment from the one rival fit the depth image bears out clearly best once each is
@@ -929,12 +941,16 @@ def _doubtful(evidence: TileEvidence, settings: InspectionSettings, moved: Seque
     a surface (agreeing with a tile, or fitting both "there" and "gone") show the alignment fits. A
     scan that contradicts most of what S_a predicts is misaligned (a fragment of the structure
     fitted to the wrong place), unless at least two tiles clearly fit to anchor it (then most of S_a
-    is simply gone). So is one in which several tiles are each partly there and partly not: a tile
-    is there or gone, and one moved tile splits one tile, not several (tiles found `moved`, by
-    index, are left out; so are the tiles `in_hand`, by index: they may not be there yet)."""
+    is simply gone). The pixels of tiles found `moved` (by index) count against, not for it: a scan
+    4.6 cm off showed little but a long rectangle, which it fitted and then called another shape,
+    and called the two tiles beside it missing. So is one in which several tiles are each partly
+    there and partly not: a tile is there or gone, and one moved tile splits one tile, not several
+    (the tiles `moved` are left out of this; so are the tiles `in_hand`, by index, of both checks:
+    they may not be there yet)."""
     fits = evidence.agree + evidence.ambiguous
     seen = fits + evidence.against
     fits[list(in_hand)], seen[list(in_hand)] = 0, 0
+    fits[list(moved)] = 0  # a tile found off its place cannot vouch for the alignment
     anchors = (fits >= 4 * settings.min_observed_pixels) & (fits >= settings.present_fraction * seen)
     if seen.sum() >= settings.min_observed_pixels and fits.sum() < settings.min_agreement * seen.sum():
         if anchors.sum() < 2:
