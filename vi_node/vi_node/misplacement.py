@@ -8,8 +8,9 @@ vertical axis, the way a tile slips when placed) that puts its points back onto 
 If that motion is large enough (default: 1 cm or 8 degrees) and explains the points much better,
 the tile is flagged, with the motion as its offset, unless the motion is smaller than the camera
 resolves at the tile's depth (`depth_noise`: 1.2 cm at 2 m, 2.7 cm at 3 m); then it is "unresolved",
-neither misplaced nor shown in place. The per-tile residual (RMS distance of its points to its faces)
-is reported for every tile.
+neither misplaced nor shown in place. So is a tile whose refit finds a clear motion of at least 0.6
+of a flag's size that stays short of a flag. The per-tile residual (RMS distance of its points to its
+faces) is reported for every tile.
 """
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ class TileFit:
     median_before: float = 0.0  # m, median distance of the refitted points to the tile where it should be
     sigmas: tuple[float, float] = (0.0, 0.0)  # significance of the fitted shift and turn
     sticking_out: int = 0  # its points off its faces by more than `sticking_out`, unexplained by a refit
-    unresolved: bool = False  # a motion fitted, but smaller than the camera resolves at the tile's depth
+    unresolved: bool = False  # a clear motion fitted, but short of a flag or of what the camera resolves
     resolution: float = 0.0  # m, the smallest motion the camera resolves at the depth of its points
 
 
@@ -367,6 +368,7 @@ def _judge_tile(
     resolved_shift = shifted and shift >= resolution
     resolved_turn = turned and corner_motion >= settings.turn_resolution * resolution
     unresolved = (shifted or turned) and not (resolved_shift or resolved_turn)
+    leaning = _leaning(offset, refit, settings)
     shifted, turned = resolved_shift, resolved_turn
     # a fit that ran off (further than a tile slips when placed) explains nothing
     believable = math.hypot(offset[0], offset[1]) <= settings.max_shift and abs(offset[2]) <= settings.max_turn
@@ -392,9 +394,19 @@ def _judge_tile(
         first_step=step,
         median_before=refit.before,
         sigmas=(refit.shift_sigmas, refit.turn_sigmas),
-        unresolved=unresolved,
+        # a clear motion short of a flag is no proof of "in place" either: a 4 cm square turned 16
+        # degrees, fitted 8.9 (7 sigmas), was called present from eight camera positions
+        unresolved=unresolved or (leaning and not (moved and better)),
         resolution=resolution,
     )
+
+
+def _leaning(offset: tuple[float, float, float], refit: _Refit, settings: MisplacementSettings) -> bool:
+    """Whether a refit found a clear motion (as significant as a flag asks) of at least `hinted_share`
+    of a flag's size, whether or not it reaches a flag."""
+    shift = math.hypot(offset[0], offset[1])
+    return (shift >= settings.hinted_share * settings.shift and refit.shift_sigmas >= settings.significance) or (
+        abs(offset[2]) >= settings.hinted_share * settings.turn and refit.turn_sigmas >= settings.turn_significance)
 
 
 def _told_from_misalignment(
