@@ -562,7 +562,8 @@ class InspectionPipeline:
             self._classify_by_evidence(evidence, result, pose)
             scan.timer.lap("classify")
             assert nearest is not None
-            self._judge_placement(nearest[0], pose, result, suspects, scan)
+            held_back = self._judge_placement(nearest[0], pose, result, suspects, scan)
+            result = untold(result, held_back)
             scan.timer.lap("misplacement")
         moved = [self.model.tile_ids.index(t) for t in result.moved_tiles()]
         in_hand = [self.model.tile_ids.index(t) for t in self.in_hand]
@@ -757,11 +758,13 @@ class InspectionPipeline:
 
     def _judge_placement(
         self, points: ScanPoints, pose: Array, result: ScanResult, suspects: Sequence[int], scan: _Scan
-    ) -> None:
+    ) -> list[int]:
         """Per-tile residuals, and MISPLACED for tiles whose points a planar motion explains better
         and whose pixels agree, or whose pixels say something of another shape lies there
-        (`misplacement`)."""
+        (`misplacement`). Returns the tiles whose pixels agree but whose points lean towards a motion:
+        not shown in place."""
         model = self.model
+        held_back = []
         fits = assess(
             points,
             PlacementContext(
@@ -803,8 +806,9 @@ class InspectionPipeline:
             elif tile.state is TileState.PRESENT and (fit.misplaced or fit.unresolved or hinted_motion(
                     fit, model.tiles[index], self.misplacement_settings)):
                 # its points moved (or within the noise), its pixels cannot tell: no verdict rather
-                # than "present and in place"
-                tile.state = TileState.OCCLUDED
+                # than "present and in place", and no pixels for fusion to add up to one either (a
+                # square turned 16 degrees, held back by every scan, was fused present from their sum)
+                held_back.append(tile.tile_id)
         for index in self._disturbed_tiles(result, blank=True):
             tile = result.tiles[index]
             if tile.state is TileState.MISPLACED:
@@ -813,6 +817,7 @@ class InspectionPipeline:
             if tile.seen_type:
                 tile.state, tile.offset = TileState.MISPLACED, (0.0, 0.0, 0.0)
                 result.misplacement[tile.tile_id] = (True, tile.offset, tile.residual)
+        return [t for t in held_back if result.by_id()[t].state is not TileState.MISPLACED]
 
     def _fitted_pose_explains(self, scan: _Scan, pose: Array, index: int, offset: tuple[float, float, float],
                               planned_agree: int) -> bool:

@@ -92,9 +92,11 @@ def agreed(rivals: Sequence[ScanResult]) -> ScanResult:
     )
 
 
-def untold(result: ScanResult, tile_ids: Sequence[int], note: str) -> ScanResult:
+def untold(result: ScanResult, tile_ids: Sequence[int], note: str = "") -> ScanResult:
     """`result` with `tile_ids` undetermined, as rivals that disagree leave a tile: no decisive pixels
     for fusion, and no misplacement verdict either way (neither a flag nor "in place")."""
+    if not tile_ids:
+        return result
     index = [k for k, t in enumerate(result.tile_ids) if t in tile_ids]
     same = np.ones(len(result.tile_ids), dtype=bool)
     same[index] = False
@@ -109,7 +111,7 @@ def untold(result: ScanResult, tile_ids: Sequence[int], note: str) -> ScanResult
         evidence=None if result.evidence is None else _least_evidence([result.evidence], same),
         evidence_states=evidence_states,
         misplacement={t: entry for t, entry in result.misplacement.items() if t not in tile_ids},
-        notes=[*result.notes, note],
+        notes=[*result.notes, note] if note else result.notes,
     )
 
 
