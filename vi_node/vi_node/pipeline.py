@@ -948,10 +948,10 @@ def _doubtful(evidence: TileEvidence, settings: InspectionSettings, moved: Seque
     fitted to the wrong place), unless at least two tiles clearly fit to anchor it (then most of S_a
     is simply gone). The pixels of tiles found `moved` (by index) count against, not for it: a scan
     4.6 cm off showed little but a long rectangle, which it fitted and then called another shape,
-    and called the two tiles beside it missing. So is one in which several tiles are each partly
-    there and partly not: a tile is there or gone, and one moved tile splits one tile, not several
-    (the tiles `moved` are left out of this; so are the tiles `in_hand`, by index, of both checks:
-    they may not be there yet)."""
+    and called the two tiles beside it missing. A scan in which several tiles are each partly there
+    and partly not is misaligned too: a tile is there or gone, and one moved tile splits one tile,
+    not several (the tiles `moved` are left out of this; the tiles `in_hand`, by index, of both
+    checks: they may not be there yet)."""
     fits = evidence.agree + evidence.ambiguous
     seen = fits + evidence.against
     fits[list(in_hand)], seen[list(in_hand)] = 0, 0

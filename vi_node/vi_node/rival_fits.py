@@ -19,7 +19,9 @@ states at all (the caller's rule).
 
 The same holds without a second fit when one tile is found moved with fewer than two tiles in place
 beside it: the alignment rests on the few tiles it sees, so "that tile moved" and "the tile the
-alignment rests on moved, and the scan with it" explain the points alike (`untold`).
+alignment rests on moved, and the scan with it" explain the points alike (`untold`). So is a tile
+whose pixels agree while its points lean towards a motion that they do not confirm: the scan holds it
+back from "in place", and its pixels must not add up to "in place" over scans either.
 """
 
 from __future__ import annotations
