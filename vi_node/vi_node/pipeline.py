@@ -424,10 +424,15 @@ class InspectionPipeline:
         shared was a present long rectangle seen through, and it was called missing)."""
         result = agreed(rivals)
         if result.evidence is not None:
-            moved = [self.model.tile_ids.index(t) for t in result.moved_tiles()]
-            in_hand = [self.model.tile_ids.index(t) for t in self.in_hand]
-            result.doubt = result.doubt or _doubtful(result.evidence, self.settings, moved, in_hand)
+            result.doubt = result.doubt or self._doubt(result.evidence, result)
         return result
+
+    def _doubt(self, evidence: TileEvidence, result: ScanResult) -> str:
+        """Why `evidence` doubts the alignment of `result` (`_doubtful`, with its moved tiles and the
+        tiles in hand), or ""."""
+        moved = [self.model.tile_ids.index(t) for t in result.moved_tiles()]
+        in_hand = [self.model.tile_ids.index(t) for t in self.in_hand]
+        return _doubtful(evidence, self.settings, moved, in_hand)
 
     def _settle_rivals(self, scan: _Scan, rivals: list[ScanResult]) -> ScanResult | None:
         """The alignment from the one rival fit the depth image bears out clearly best once each is
@@ -565,10 +570,8 @@ class InspectionPipeline:
             held_back = self._judge_placement(nearest[0], pose, result, suspects, scan)
             result = untold(result, held_back)
             scan.timer.lap("misplacement")
-        moved = [self.model.tile_ids.index(t) for t in result.moved_tiles()]
-        in_hand = [self.model.tile_ids.index(t) for t in self.in_hand]
-        doubt = _doubtful(evidence, self.settings, moved, in_hand)
-        if doubt and not moved:  # with tiles found moved, the alignment without them decides
+        doubt = self._doubt(evidence, result)
+        if doubt and not result.moved_tiles():  # with tiles found moved, the alignment without them decides
             return scan.failed(f"alignment doubtful: {doubt}")
         result.doubt = doubt
         return result
