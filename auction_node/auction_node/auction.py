@@ -7,6 +7,11 @@ deadline; it closes as soon as every invited robot has bid, or at the deadline, 
 bid wins. Robots that do not answer in time are left out; ties go to the robot whose name sorts
 first in natural order (robot2 before robot10), so every run decides alike. An auction nobody bid
 in is reopened later by the caller.
+
+Beyond the paper: the book remembers who won each tile (`held_by`) until the caller says the tile is
+settled (placed, or given up). A tile found lying wrong while its re-placement is auctioned, or held
+by a robot, must not become a second task for another robot: the caller withdraws the open auction
+and gives the repair to the robot that holds the tile (two robots would carry it to one place).
 """
 
 from __future__ import annotations
@@ -60,6 +65,7 @@ class AuctionBook:
     bid_window: float = 1.0  # s from announcement to deadline
     next_id: int = 1
     open_auctions: dict[int, Auction] = field(default_factory=dict)
+    held_by: dict[int, str] = field(default_factory=dict)  # tile -> winner of its latest award, until settled
 
     def open(self, tile_id: int, reason: int, now: float, invited: Iterable[str]) -> Auction | None:
         """Announce `tile_id`; None when it is already being auctioned."""
@@ -69,6 +75,18 @@ class AuctionBook:
         self.open_auctions[auction.auction_id] = auction
         self.next_id += 1
         return auction
+
+    def withdraw(self, tile_id: int) -> Auction | None:
+        """Close the open auction of `tile_id` without an award (what it was for is moot); the auction
+        withdrawn, or None when none was open."""
+        auction = next((a for a in self.open_auctions.values() if a.tile_id == tile_id), None)
+        if auction is not None:
+            del self.open_auctions[auction.auction_id]
+        return auction
+
+    def settled(self, tile_id: int) -> None:
+        """`tile_id` was placed, or given up by its holder: nobody holds it any more."""
+        self.held_by.pop(tile_id, None)
 
     def bid(self, auction_id: int, robot: str, value: float, now: float) -> str | None:
         """Record a bid; returns why it was refused, or None when taken."""
@@ -100,7 +118,10 @@ class AuctionBook:
             if not auction.complete(now):
                 continue
             del self.open_auctions[auction_id]
-            awards.append(decide(auction))
+            award = decide(auction)
+            if award.winner:
+                self.held_by[award.tile_id] = award.winner
+            awards.append(award)
         return awards
 
 

@@ -136,7 +136,6 @@ class AuctionNode(Node):
         self.repeats = RepeatFilter()
         self.structure: StructureModel | None = None
         self.status: dict[str, RobotStatus] = {}
-        self.excluded: dict[int, str] = {}  # auction id -> robot left out (it gave the tile up)
         self.detected_wall: dict[int, float] = {}  # tile -> wall time its mismatch was detected
         self.announcements: dict[int, AuctionAnnouncement] = {}  # open auction id -> its announcement
         self.reopen: list[tuple[float, int, int]] = []  # (node time, tile, reason)
@@ -174,11 +173,14 @@ class AuctionNode(Node):
             self.get_logger().info(line)
         self.decision_pub.publish(String(data=line))
 
-    def announce(self, tile_id: int, reason: int, exclude: str = "") -> None:
+    def announce(self, tile_id: int, reason: int, exclude: str = "", only: str = "") -> None:
+        """Open an auction for `tile_id` among the robots alive, but `exclude` (unless it is the only
+        one), or `only` that robot when it is alive."""
         if self.structure is None or tile_id not in self.structure.tiles:
             return
         resting = self.resting_on(tile_id) if reason == AuctionAnnouncement.REASON_MISPLACED else []
-        invited = [r for r in self.liveness.alive() if r != exclude] or self.liveness.alive()
+        alive = self.liveness.alive()
+        invited = [only] if only in alive else [r for r in alive if r != exclude] or alive
         if not invited:
             self.decide(f"tile {tile_id} ({REASONS[reason]}): no robot alive to bid; retrying later", error=True)
             self.reopen.append((self.now() + self.reopen_delay, tile_id, reason))
@@ -186,8 +188,6 @@ class AuctionNode(Node):
         auction = self.book.open(tile_id, reason, self.now(), invited)
         if auction is None:
             return
-        if exclude:
-            self.excluded[auction.auction_id] = exclude
         tile = self.structure.tiles[tile_id]
         msg = AuctionAnnouncement(
             auction_id=auction.auction_id, tile_id=tile_id, tile_type=tile.type_name, reason=reason,
@@ -216,14 +216,33 @@ class AuctionNode(Node):
         return list(plan_repair(self.structure, tile_id, placed).taken_off)
 
     def repair(self, tile_id: int, why: str) -> None:
-        """Auction the repair of `tile_id`, found lying wrong, unless one is under way."""
+        """Auction the repair of `tile_id`, found lying wrong, unless one is under way.
+
+        A tile called missing before is there after all: its re-placement, if still auctioned, is
+        withdrawn, and a robot that holds it (won it, not yet placed it) is the one to repair it,
+        since it goes there with the tile anyway.
+        """
         if tile_id in self.under_repair:
             return
         self.under_repair.add(tile_id)
         self.detector.lies_wrong(tile_id)
         self.detected_wall[tile_id] = time.time()
-        self.decide(f"tile {tile_id} lies wrong ({why}): repairing it")
-        self.announce(tile_id, AuctionAnnouncement.REASON_MISPLACED)
+        withdrawn = self.withdraw_placement(tile_id)
+        holder = self.book.held_by.get(tile_id, "")
+        holder = holder if holder in self.liveness.alive() else ""
+        instead = f"; auction {withdrawn} to place it again is withdrawn" if withdrawn else ""
+        by_holder = f"; {holder}, which is to place it again, does it" if holder else ""
+        self.decide(f"tile {tile_id} lies wrong ({why}): repairing it{instead}{by_holder}")
+        self.announce(tile_id, AuctionAnnouncement.REASON_MISPLACED, only=holder)
+
+    def withdraw_placement(self, tile_id: int) -> int:
+        """Withdraw the open auction (or the reopening due) to place `tile_id`; the auction id, or 0."""
+        self.reopen = [entry for entry in self.reopen if entry[1] != tile_id]
+        auction = self.book.withdraw(tile_id)
+        if auction is None:
+            return 0
+        self.announcements.pop(auction.auction_id, None)
+        return auction.auction_id
 
     # --- inputs -------------------------------------------------------------------------------
     def on_structure(self, msg: Structure) -> None:
@@ -238,6 +257,7 @@ class AuctionNode(Node):
         if msg.outcome == PlacementReport.OUTCOME_PLACED:
             self.detector.placed(msg.tile_id, stamp_to_seconds(msg.header.stamp))
             self.under_repair.discard(msg.tile_id)
+            self.book.settled(msg.tile_id)
         elif msg.outcome == PlacementReport.OUTCOME_REMOVED:
             self.detector.taken_off(msg.tile_id)
         elif msg.outcome == PlacementReport.OUTCOME_BLOCKED:
@@ -246,6 +266,7 @@ class AuctionNode(Node):
         elif msg.outcome == PlacementReport.OUTCOME_FAILED:
             self.detector.unplaced(msg.tile_id)
             self.under_repair.discard(msg.tile_id)  # a robot placing it will find it in the way again
+            self.book.settled(msg.tile_id)
             self.decide(f"{msg.robot_name} gave up tile {msg.tile_id}: {msg.reason}", error=True)
             self.announce(msg.tile_id, AuctionAnnouncement.REASON_GAVE_UP, exclude=msg.robot_name)
         elif msg.outcome == PlacementReport.OUTCOME_SUPPORT_MISSING:

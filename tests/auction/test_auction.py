@@ -78,3 +78,19 @@ def test_a_repair_line_says_how_the_tile_lies() -> None:
         "a triangle in its place"
     shifted = TileState(tile_id=6, state=TileState.MISPLACED, offset_x=0.03, offset_y=0.04, offset_yaw=0.26)
     assert how_it_lies(shifted) == "off by 5.0 cm, +15 deg"
+
+
+def test_the_book_knows_who_holds_a_tile_until_it_is_settled_and_withdraws_open_auctions() -> None:
+    book = AuctionBook(bid_window=2.0)
+    first = book.open(5, 0, now=0.0, invited=["robot1", "robot2"])
+    assert first is not None
+    book.bid(first.auction_id, "robot2", 1.0, now=0.5)
+    book.close_ready(3.0)
+    assert book.held_by == {5: "robot2"}
+    again = book.open(7, 0, now=3.0, invited=["robot1"])
+    assert again is not None
+    assert book.withdraw(7) is again and book.open_auctions == {}
+    assert book.withdraw(7) is None
+    assert book.close_ready(10.0) == [] and 7 not in book.held_by  # withdrawn: never awarded
+    book.settled(5)
+    assert book.held_by == {}

@@ -1,6 +1,7 @@
 """auction_node as a real ROS 2 process, when only scans decide (robots_find_missing false): a
 support a robot found absent waits for a scan to confirm it, and is acted on after
-unconfirmed_report_timeout if none does, so the robot that found it does not wait forever."""
+unconfirmed_report_timeout if none does, so the robot that found it does not wait forever. A tile
+called missing and then found lying wrong is repaired once, by one robot."""
 
 from __future__ import annotations
 
@@ -22,12 +23,15 @@ from tiling_assembly.messages import structure_to_msg
 from tiling_assembly.structure_file import load_structure
 from tiling_assembly_msgs.msg import (
     AuctionAnnouncement,
+    AuctionAward,
+    AuctionBid,
     PlacementReport,
     RobotStatus,
     Structure,
     TileState,
     TileStateArray,
 )
+from tiling_ros import team_topics as topics
 
 pytestmark = pytest.mark.ros
 
@@ -40,7 +44,7 @@ TIMEOUT = 3.0  # s, unconfirmed_report_timeout of the node under test
 
 
 class Team:
-    """Stands in for the structure publisher, one assembly robot and the inspection."""
+    """Stands in for the structure publisher, two assembly robots and the inspection."""
 
     def __init__(self) -> None:
         self.domain = fresh_domain()
@@ -50,6 +54,9 @@ class Team:
         self.executor.add_node(self.node)
         self.announcements: list[tuple[float, AuctionAnnouncement]] = []
         self.decisions: list[str] = []
+        self.awards: list[AuctionAward] = []
+        topics.AWARDS.subscribe(self.node, self.awards.append)
+        self.bid_pub = topics.BIDS.publisher(self.node)
         self.node.create_subscription(AuctionAnnouncement, "/auction/announcements",
                                       lambda m: self.announcements.append((time.monotonic(), m)), RELIABLE)
         self.node.create_subscription(String, "/auction/decisions", lambda m: self.decisions.append(m.data),
@@ -58,7 +65,11 @@ class Team:
         self.report_pub = self.node.create_publisher(PlacementReport, "/placement_reports", REPORTS)
         self.states_pub = self.node.create_publisher(TileStateArray, "/tile_states", RELIABLE)
         self.status_pub = self.node.create_publisher(RobotStatus, "/robot_status", RELIABLE)
-        self.node.create_timer(0.2, lambda: self.status_pub.publish(RobotStatus(robot_name="robot1")))
+        self.node.create_timer(0.2, self.heartbeats)
+
+    def heartbeats(self) -> None:
+        for robot in ("robot1", "robot2"):
+            self.status_pub.publish(RobotStatus(robot_name=robot))
 
     def spin_until(self, predicate: Callable[[], bool], timeout: float, what: str) -> None:
         deadline = time.monotonic() + timeout
@@ -73,9 +84,10 @@ class Team:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.05)
 
-    def report(self, tile_id: int, outcome: int, missing: tuple[int, ...] = ()) -> None:
-        msg = PlacementReport(robot_name="robot1", tile_id=tile_id, outcome=outcome, attempts=1,
-                              missing_supports=list(missing))
+    def report(self, tile_id: int, outcome: int, missing: tuple[int, ...] = (), robot: str = "robot1",
+               wrong: tuple[int, ...] = ()) -> None:
+        msg = PlacementReport(robot_name=robot, tile_id=tile_id, outcome=outcome, attempts=1,
+                              missing_supports=list(missing), wrong_tiles=list(wrong))
         msg.header.stamp = self.node.get_clock().now().to_msg()
         self.report_pub.publish(msg)
 
@@ -85,6 +97,9 @@ class Team:
         msg.camera_pose.position.x = camera_x
         msg.states = [TileState(tile_id=missing, state=TileState.MISSING, scan_count=1, see_through_support=200)]
         self.states_pub.publish(msg)
+
+    def bid(self, auction_id: int, robot: str, value: float) -> None:
+        self.bid_pub.publish(AuctionBid(auction_id=auction_id, robot_name=robot, bid=value))
 
     def announced(self, tile_id: int) -> list[tuple[float, AuctionAnnouncement]]:
         """The auctions opened for `tile_id` (an announcement is repeated until every robot bids)."""
@@ -158,3 +173,54 @@ def test_a_scan_that_confirms_the_report_is_acted_on_once(team: tuple[Team, Any]
     assert announcement.reason == AuctionAnnouncement.REASON_MISSING
     # robot1 never bids: its invitation went out again every resend_period until the deadline
     assert 20 <= team.copies(announcement.auction_id) <= 50  # 2 s window, resend_period 0.05 s
+
+
+def called_missing_then_found_in_the_way(team: Team, structure: Any) -> tuple[int, AuctionAnnouncement]:
+    """A placed tile a scan calls missing (its re-placement auctioned), then robot1 finds it lying
+    wrong in the way of another tile; returns the tile and its re-placement announcement."""
+    tile = next(t for t in structure.tile_ids if structure.supports[t])
+    team.report(tile, PlacementReport.OUTCOME_PLACED)
+    team.spin_for(0.3)
+    team.scan(tile, camera_x=1.0)
+    team.spin_until(lambda: team.announced(tile), 5.0, "re-placement auction")
+    (_, replacement), = team.announced(tile)
+    assert replacement.reason == AuctionAnnouncement.REASON_MISSING
+    return tile, replacement
+
+
+def found_in_the_way(team: Team, structure: Any, tile: int) -> None:
+    blocked = next(t for t in structure.tile_ids if t != tile)
+    team.report(blocked, PlacementReport.OUTCOME_BLOCKED, robot="robot1", wrong=(tile,))
+
+
+def test_a_tile_found_lying_wrong_while_its_replacement_is_auctioned_is_repaired_instead(
+        team: tuple[Team, Any]) -> None:
+    team, structure = team
+    tile, replacement = called_missing_then_found_in_the_way(team, structure)
+    found_in_the_way(team, structure, tile)
+    team.spin_until(lambda: len(team.announced(tile)) == 2, 5.0, "repair auction")
+    repair = team.announced(tile)[1][1]
+    assert repair.reason == AuctionAnnouncement.REASON_MISPLACED
+    assert repair.bidders == ["robot1", "robot2"]
+    team.bid(repair.auction_id, "robot1", 3.0)
+    team.bid(repair.auction_id, "robot2", 4.0)
+    team.spin_until(lambda: any(a.auction_id == repair.auction_id for a in team.awards), 5.0, "repair award")
+    team.spin_for(3.0)  # past the withdrawn auction's deadline
+    assert {a.auction_id for a in team.awards} == {repair.auction_id}, "the withdrawn auction was awarded too"
+    assert any(f"auction {replacement.auction_id} to place it again is withdrawn" in d for d in team.decisions)
+
+
+def test_a_tile_found_lying_wrong_after_its_replacement_was_won_is_repaired_by_the_winner(
+        team: tuple[Team, Any]) -> None:
+    team, structure = team
+    tile, replacement = called_missing_then_found_in_the_way(team, structure)
+    team.bid(replacement.auction_id, "robot1", 9.0)
+    team.bid(replacement.auction_id, "robot2", 5.0)
+    team.spin_until(lambda: any(a.winner == "robot2" for a in team.awards), 5.0, "re-placement award to robot2")
+    found_in_the_way(team, structure, tile)
+    team.spin_until(lambda: len(team.announced(tile)) == 2, 5.0, "repair auction")
+    repair = team.announced(tile)[1][1]
+    assert repair.reason == AuctionAnnouncement.REASON_MISPLACED
+    assert repair.bidders == ["robot2"], "another robot could win the repair while robot2 carries the tile there"
+    team.spin_until(lambda: any("robot2, which is to place it again, does it" in d for d in team.decisions), 2.0,
+                    "the decision line")
