@@ -429,3 +429,25 @@ def test_a_square_turned_16_degrees_is_never_fused_present_around_the_structure(
         if result.ok:
             fused.append(fuse_scan(fusion, result).by_id()[9].state)
     assert TileState.MISPLACED in fused and TileState.PRESENT not in fused, fused
+
+
+@pytest.mark.parametrize("bearing", [-180.0, -150.0, -60.0])
+def test_a_large_tile_turned_beside_few_others_is_flagged_though_it_pulls_every_fit_off(bearing: float) -> None:
+    """Long rectangle 3 turned 23 degrees beside trapezoid 7 and square 8, early in the build: every
+    fit with it in place landed 11-16 cm off the overhead pose, beyond belief, and the scans gave no
+    states until a removal took the tile away (the team's run). Aligned without it, the scan
+    finds it moved and 7 and 8 where they are."""
+    paper = structure()
+    scene = Scene(paper, (3, 7, 8), (), {3: moved_tile(paper.tiles[3], (0.0, 0.0, math.radians(23.0)))})
+    rng = np.random.default_rng(7)
+    for _ in range(int((bearing + 180.0) // 30.0)):  # the views of the search that found the case
+        view_from(scene.centre, 0.0, rng.uniform(0.8, 1.3), rng)
+    view = view_from(scene.centre, math.radians(bearing), rng.uniform(0.8, 1.3), rng)
+    cloud = KinectSimulator(seed=3).scan(scene.kinect_scene, view.camera)
+    result = InspectionPipeline(paper, (3, 7, 8), InspectionSettings()).inspect(cloud, OverheadPose(*view.overhead))
+    assert result.ok, result.reason
+    states = {t.tile_id: t.state for t in result.tiles}
+    turn = abs(result.by_id()[3].offset[2])  # 0 when flagged for its shape, not a motion
+    assert states[3] is TileState.MISPLACED and (turn == 0.0 or abs(turn - math.radians(23.0)) < 0.1)
+    assert states[8] is TileState.PRESENT and states[7] is not TileState.MISPLACED
+    assert any("aligned without tile 3" in note for note in result.notes)

@@ -73,6 +73,11 @@ from vi_node.view_agreement import DepthView, climb, view_agreement
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
 
+# a scan that fails to align is aligned once more without each of this many largest tiles in turn
+# (a search and an ICP each, only on failure): a misplaced tile large enough to pull a fit off is
+# among the largest
+LEAVE_OUT_TRIES = 3
+
 
 class ExpectedModel:
     """Everything derived from one S_a, built once and reused for every scan of it."""
@@ -238,7 +243,7 @@ class InspectionPipeline:
         rivals = distinct(results)
         if not results[0].ok:  # the best fit's alignment fails its checks: a rival alone is no better
             hidden = self._hidden_by_robots(scan, level) if results[0].reason.startswith("alignment") else ""
-            return scan.failed(hidden) if hidden else results[0]
+            return scan.failed(hidden) if hidden else self._align_leaving_one_out(scan, level, results[0])
         if len(rivals) > 1:
             settled = self._settle_rivals(scan, rivals)
             if settled is None:
@@ -469,7 +474,7 @@ class InspectionPipeline:
         on_surface = np.einsum("ij,ij->i", final - closest, final - closest) <= 0.003**2
         return int(np.count_nonzero(on_surface)), start, refined
 
-    def _classify_from(self, scan: _Scan, start: Array) -> ScanResult:
+    def _classify_from(self, scan: _Scan, start: Array, suspects: Sequence[int] = ()) -> ScanResult:
         """The alignment from one x, y, yaw hypothesis and the classification under it; the
         pixels it masks as robots are its own (a rival starts from the same masks)."""
         masks = [None if m is None else m.copy() for m in (scan.masked, scan.unjudged)]
@@ -477,7 +482,7 @@ class InspectionPipeline:
         if len(candidates) < self.settings.min_alignment_points:
             result = scan.failed(f"alignment failed: only {len(candidates)} candidate points")
         else:
-            result = self._align_and_classify(scan, pose=start, candidates=candidates)
+            result = self._align_and_classify(scan, pose=start, candidates=candidates, suspects=suspects)
         scan.masked, scan.unjudged = masks
         return result
 
@@ -862,6 +867,35 @@ class InspectionPipeline:
                 return rival.type_name
         return ""
 
+    def _align_leaving_one_out(self, scan: _Scan, level: Array, failed: ScanResult) -> ScanResult:
+        """A scan that fails to align may be pulled off by one misplaced tile: with few tiles in S_a a
+        long rectangle turned 23 degrees drew every fit 10-18 cm and up to 22 degrees off the overhead
+        pose, and the scans gave no states until a removal took the tile away. Align once more without
+        each of the largest tiles in turn (its points stay in the scan, as clutter) and judge it as a
+        suspect; the first of its fits that passes its checks stands if it finds that tile moved (then
+        as any scan that finds a tile moved: `_unless_all_moved`). Otherwise the failure stands."""
+        if self.paper or not failed.reason.startswith("alignment") or len(self.aligning) < 2:
+            return failed
+        aligning = self.aligning
+        extent = aligning.patches.tile_high[:, :2] - aligning.patches.tile_low[:, :2]
+        largest = np.argsort(-extent.prod(axis=1), kind="stable")[:LEAVE_OUT_TRIES]
+        try:
+            for index in largest:
+                tile_id = aligning.tile_ids[index]
+                self.aligning = self._model_for(set(aligning.tile_ids) - {tile_id})
+                starts, failure = self._search_x_y_yaw(scan, level)
+                suspects = [self.model.tile_ids.index(tile_id)]
+                fits = (self._classify_from(scan, start, suspects) for start in ([] if failure else starts))
+                result = next((fit for fit in fits if fit.ok), None)
+                if result is not None and tile_id in result.moved_tiles():
+                    result.notes = [*result.notes, f"aligned without tile {tile_id}: {failed.reason}"]
+                    # every fit with the tile in place failed its checks, so one tile judged in place
+                    # beside it tells it from a misalignment (`_unless_unanchored`)
+                    return self._unless_all_moved(result, scan, anchors=1)
+        finally:
+            self.aligning = aligning
+        return failed
+
     def _judge_again_without_moved_tiles(self, scan: _Scan, level: Array, first: ScanResult) -> ScanResult:
         """A misplaced tile pulls the alignment towards where it lies: search and align once more,
         from the floor-levelled prior, without the points around the tiles found misplaced, and
@@ -893,7 +927,7 @@ class InspectionPipeline:
         )
         return self._unless_all_moved(second if second.ok else first, scan)
 
-    def _unless_all_moved(self, result: ScanResult, scan: _Scan) -> ScanResult:
+    def _unless_all_moved(self, result: ScanResult, scan: _Scan, anchors: int = 2) -> ScanResult:
         """No states from a scan in which several tiles seem moved: a misalignment is far more likely
         than three tiles misplaced at once, or two that moved as one (`moved_as_one`), or two moved
         beside as many called missing with fewer than two tiles in place to anchor the alignment (or
@@ -905,7 +939,7 @@ class InspectionPipeline:
         judged = len(result.misplacement)
         moved = result.moved_tiles()
         if len(moved) == 1:
-            return self._unless_unanchored(result, moved[0])
+            return self._unless_unanchored(result, moved[0], anchors)
         if len(moved) < 2 or len(moved) < 0.25 * judged:
             return result
         together = f"alignment doubtful: {len(moved)} of {judged} tiles seem moved together"
@@ -919,8 +953,8 @@ class InspectionPipeline:
             return scan.failed(f"alignment doubtful: {len(moved)} tiles seem moved and {missing} missing")
         return result
 
-    def _unless_unanchored(self, result: ScanResult, moved: int) -> ScanResult:
-        """A tile found moved with fewer than two tiles judged in place beside it: the alignment rests
+    def _unless_unanchored(self, result: ScanResult, moved: int, needed: int = 2) -> ScanResult:
+        """A tile found moved with fewer than `needed` tiles judged in place beside it: the alignment rests
         on those few, so the scan cannot tell the tile moved from the tile under the alignment moved
         (and the scan with it). Neither is judged (`rival_fits.untold`), rather than the wrong one
         flagged and the moved one shown in place: a block shifted 2.9 cm on the block under it, the
@@ -930,7 +964,7 @@ class InspectionPipeline:
         if not any(offset):
             return result
         anchors = [t.tile_id for t in result.tiles if t.state is TileState.PRESENT and t.tile_id in result.misplacement]
-        if len(anchors) >= 2:
+        if len(anchors) >= needed:
             return result
         beside = f"only tile {anchors[0]}" if anchors else "no tile"
         return untold(result, [moved, *anchors], f"tile {moved} seems moved, with {beside} judged in place "
