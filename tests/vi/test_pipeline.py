@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from vi_helpers import structure
 
+from tiling_assembly.geometry import PlacedTile
 from tiling_sim.inspection_scenarios import Scene, ViewSettings, random_view, robots_beside, view_from
 from tiling_sim.kinect import KINECT_V1_DEPTH, ClutterBox, KinectScene, KinectSimulator
 from vi_node.classify import TileState
@@ -191,6 +192,18 @@ def test_tiles_in_a_robots_hand_do_not_pull_the_alignment_onto_their_places(seed
     assert all(t.state in (TileState.PRESENT, TileState.OCCLUDED) for t in result.tiles), result.tiles
 
 
+def states_beside_a_robot(tiles: list[PlacedTile], bearing: float) -> dict[int, TileState]:
+    """paper_14's states from a scan of `tiles` (physically there) with a robot 3 cm beside the
+    structure at +x, its overhead pose 5 cm and 10 degrees off towards it."""
+    robot = ClutterBox((0.34, 0.0, 0.175), (0.33, 0.33, 0.35))
+    view = view_from(np.zeros(3), math.radians(bearing), 1.1, np.random.default_rng(3))
+    cloud = KinectSimulator(seed=4).scan(KinectScene(tiles, [robot]), view.camera)
+    robots = [OverheadPose(0.29, 0.0, math.radians(10.0))]
+    result = InspectionPipeline(structure(), None, DEFAULT).inspect(cloud, OverheadPose(*view.overhead), robots)
+    assert result.ok, result.reason
+    return {tile.tile_id: tile.state for tile in result.tiles}
+
+
 @pytest.mark.parametrize("bearing", [150.0, 90.0])
 def test_tiles_beside_a_robot_are_judged_when_its_overhead_pose_errs_towards_them(bearing: float) -> None:
     """A robot 3 cm from the structure, its overhead pose 5 cm and 10 degrees off towards it: the
@@ -198,16 +211,7 @@ def test_tiles_beside_a_robot_are_judged_when_its_overhead_pose_errs_towards_the
     removed trapezoid there (and the square that rested on it) are found missing, the square on
     the octagon next to them present."""
     paper = structure()
-    present = [tile for tile_id, tile in paper.tiles.items() if tile_id not in (7, 8)]
-    robot = ClutterBox((0.34, 0.0, 0.175), (0.33, 0.33, 0.35))
-    view = view_from(np.zeros(3), math.radians(bearing), 1.1, np.random.default_rng(3))
-    cloud = KinectSimulator(seed=4).scan(KinectScene(present, [robot]), view.camera)
-    robots = [OverheadPose(0.29, 0.0, math.radians(10.0))]
-
-    result = InspectionPipeline(paper, None, DEFAULT).inspect(cloud, OverheadPose(*view.overhead), robots)
-
-    assert result.ok, result.reason
-    states = {tile.tile_id: tile.state for tile in result.tiles}
+    states = states_beside_a_robot([tile for tile_id, tile in paper.tiles.items() if tile_id not in (7, 8)], bearing)
     assert states[7] == states[8] == TileState.MISSING
     assert states[10] == TileState.PRESENT
     assert not [tile for tile, state in states.items() if tile not in (7, 8) and state == TileState.MISSING]
@@ -223,16 +227,7 @@ def test_a_tile_shifted_into_a_robots_grown_box_is_found_there(bearing: float) -
     pixels inside it, where only the tile explains a surface at that depth."""
     paper = structure()
     shifted = [moved_tile(paper.tiles[14], (0.03, 0.0, 0.0))]
-    present = [tile for tile_id, tile in paper.tiles.items() if tile_id != 14] + shifted
-    robot = ClutterBox((0.34, 0.0, 0.175), (0.33, 0.33, 0.35))
-    view = view_from(np.zeros(3), math.radians(bearing), 1.1, np.random.default_rng(3))
-    cloud = KinectSimulator(seed=4).scan(KinectScene(present, [robot]), view.camera)
-    robots = [OverheadPose(0.29, 0.0, math.radians(10.0))]
-
-    result = InspectionPipeline(paper, None, DEFAULT).inspect(cloud, OverheadPose(*view.overhead), robots)
-
-    assert result.ok, result.reason
-    states = {tile.tile_id: tile.state for tile in result.tiles}
+    states = states_beside_a_robot([tile for tile_id, tile in paper.tiles.items() if tile_id != 14] + shifted, bearing)
     assert states[14] is TileState.MISPLACED
     assert all(state in (TileState.PRESENT, TileState.OCCLUDED) for tile, state in states.items() if tile != 14)
 
