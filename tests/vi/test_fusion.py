@@ -192,6 +192,20 @@ def test_a_flagged_tile_whose_place_a_later_view_sees_empty_is_missing() -> None
         assert fusion.state_of(5) == TileState.MISSING
 
 
+def test_the_pixels_of_a_view_that_flags_a_tile_count_for_neither_state() -> None:
+    """Independent scene: a square swapped for a long rectangle, which covers the square's place.
+    The first view flagged it (all 240 of its pixels agreed with the square), the second saw its
+    place empty, the third saw 12 pixels that agreed: summed with the flagging view's, present."""
+    fusion = TileFusion()
+    fusion.add([10], seen(240, 0, 260), [int(TileState.MISPLACED)], {10: (True, (0.0, 0.0, 0.0), 0.004)})
+    assert fusion.state_of(10) == TileState.MISPLACED
+    fusion.add([10], seen(3, 40, 60), [M], {10: (False, (0.0, 0.0, 0.0), 0.004)})
+    assert fusion.state_of(10) == TileState.MISSING
+    fusion.add([10], seen(12, 0, 15), [O])
+    assert fusion.state_of(10) != TileState.PRESENT
+    assert int(fusion.summed([10]).agree[0]) < 240  # the flagging view's pixels are not in the sum
+
+
 def test_paper_rules_keep_the_latest_resolved_state() -> None:
     fusion = TileFusion(paper_rules=True)
     fusion.add([5], seen(300, 0, 310), [P])

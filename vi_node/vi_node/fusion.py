@@ -15,7 +15,10 @@ the older views do not vouch for it and it is undetermined until a view settles 
 glimpses a decided tile with too few pixels to lean either way leaves it as it is: its stale decision
 is not reported as a new observation. A tile that is (re)placed starts afresh. A tile found
 misplaced stays so until two scans see it present and in place, or one sees its place empty without
-finding it moved nearby (then it is missing): a tile does not move back onto its place by itself
+finding it moved nearby (then it is missing); the pixels of a scan that flags it count for neither
+(a square swapped for a long rectangle, flagged from one view and seen missing from another, was
+fused present on the third from the flagging view's pixels, which all agreed with the square, since
+the rectangle covered its place): a tile does not move back onto its place by itself
 (a repair re-places it, and it starts afresh), so one view of it in place after a flag leaves it
 undetermined until another agrees (a cap turned 34 degrees, flagged from two bearings, was fused
 present on the third, where its turn hid behind its neighbour's faces); a later scan that does not flag it
@@ -101,13 +104,17 @@ class TileFusion:
             mine = evidence.take(k)
             fused = self.tiles.get(tile_id)
             resolved = scan_state in RESOLVED
+            flagged = bool(misplacement and misplacement.get(tile_id, (False,))[0])
             if fused is None:
-                fused = FusedTile(mine, scan_state)
-                fused.saw(mine, self.settings)
+                fused = FusedTile(TileEvidence.zeros(1) if flagged and not self.paper_rules else mine, scan_state)
+                if not flagged:
+                    fused.saw(mine, self.settings)
             elif self.paper_rules:
                 fused.evidence = fused.evidence + mine
                 if resolved or fused.state not in RESOLVED:
                     fused.state = scan_state
+            elif flagged:
+                pass  # what agrees with its planned pose is a tile near its place or of another shape
             elif fused.state in RESOLVED and int(mine.observed[0]) < MIN_LEANING_PIXELS:
                 continue  # a glimpse: says nothing about a decided tile
             elif fused.state in RESOLVED and self._leaning(mine) not in (None, fused.state):
