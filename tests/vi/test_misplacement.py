@@ -436,7 +436,7 @@ def test_a_large_tile_turned_beside_few_others_is_flagged_though_it_pulls_every_
     """Long rectangle 3 turned 23 degrees beside trapezoid 7 and square 8, early in the build: every
     fit with it in place landed 11-16 cm off the overhead pose, beyond belief, and the scans gave no
     states until a removal took the tile away (the team's run). Aligned without it, the scan
-    finds it moved and 7 and 8 where they are."""
+    finds it moved, and neither 7 nor 8 moved or missing."""
     paper = structure()
     scene = Scene(paper, (3, 7, 8), (), {3: moved_tile(paper.tiles[3], (0.0, 0.0, math.radians(23.0)))})
     rng = np.random.default_rng(7)
@@ -449,5 +449,7 @@ def test_a_large_tile_turned_beside_few_others_is_flagged_though_it_pulls_every_
     states = {t.tile_id: t.state for t in result.tiles}
     turn = abs(result.by_id()[3].offset[2])  # 0 when flagged for its shape, not a motion
     assert states[3] is TileState.MISPLACED and (turn == 0.0 or abs(turn - math.radians(23.0)) < 0.1)
-    assert states[8] is TileState.PRESENT and states[7] is not TileState.MISPLACED
+    # 8 is at most shown in place (it is undetermined when it is the only tile in place in view)
+    assert states[8] in (TileState.PRESENT, TileState.OCCLUDED) and states[7] is not TileState.MISPLACED
+    assert TileState.MISSING not in states.values()
     assert any("aligned without tile 3" in note for note in result.notes)

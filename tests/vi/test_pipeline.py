@@ -350,3 +350,25 @@ def test_the_pixels_of_a_tile_found_moved_do_not_vouch_for_the_alignment() -> No
     anchored = replace(evidence, agree=np.array([150, 160, 140]), see_through=np.array([5, 5, 85]),
                        judged=np.array([160, 170, 260]), virtual=np.array([160, 170, 260]))
     assert _doubtful(anchored, settings, moved=[2]) == ""
+
+
+@pytest.mark.parametrize("bearing", [30.0, 150.0, 270.0])
+def test_a_tile_alone_in_place_in_view_is_not_shown_in_place(bearing: float) -> None:
+    """With one tile in view the alignment rests on it, and within the overhead pose's errors a
+    long rectangle shifted 2.5 cm takes the camera's pose with it: it was called present. Shifted
+    or not, it is left undetermined; beside a second tile in place, both are shown in place."""
+    paper = structure()
+    shifted = moved_tile(paper.tiles[3], (0.025, 0.0, 0.0))
+    pipeline = InspectionPipeline(paper, None, InspectionSettings())
+    cases = (((3,), {3: shifted}, {3: TileState.OCCLUDED}), ((3,), {}, {3: TileState.OCCLUDED}),
+             ((3, 7), {}, {3: TileState.PRESENT, 7: TileState.PRESENT}))
+    for expected, misplaced, states in cases:
+        scene = Scene(paper, expected, (), misplaced)
+        view = view_from(scene.centre, math.radians(bearing), 1.0, np.random.default_rng(4))
+        pipeline.set_expected(expected)
+        result = pipeline.inspect(KinectSimulator(seed=5).scan(scene.kinect_scene, view.camera),
+                                  OverheadPose(*view.overhead))
+        assert result.ok, result.reason
+        assert {t.tile_id: t.state for t in result.tiles} == states, (expected, misplaced)
+        if len(expected) == 1:
+            assert any("only tile in place" in note for note in result.notes)

@@ -48,21 +48,23 @@ def rng(seed: int) -> np.random.Generator:
     return np.random.default_rng(seed)
 
 
-def states_from(scene: Scene, tile_id: int, bearings: tuple[float, ...], seeds: tuple[int, int]) -> list[TileState]:
+def states_from(scene: Scene, tile_id: int, bearings: tuple[float, ...], seeds: tuple[int, int],
+                distance: float = 1.0) -> list[TileState]:
     """The states of `tile_id` in simulated scans of `scene` (`results_from`)."""
-    return [result.state for result in results_from(scene, tile_id, bearings, seeds)]
+    return [result.state for result in results_from(scene, tile_id, bearings, seeds, distance)]
 
 
-def results_from(scene: Scene, tile_id: int, bearings: tuple[float, ...], seeds: tuple[int, int]) -> list[TileResult]:
-    """What simulated scans of `scene` from `bearings` (degrees, 1 m away; `seeds`: of the Kinect's
-    noise and of the views' errors) say of `tile_id`, asserting that every scan aligns and flags no
-    other tile misplaced."""
+def results_from(scene: Scene, tile_id: int, bearings: tuple[float, ...], seeds: tuple[int, int],
+                 distance: float = 1.0) -> list[TileResult]:
+    """What simulated scans of `scene` from `bearings` (degrees, `distance` m away; `seeds`: of the
+    Kinect's noise and of the views' errors) say of `tile_id`, asserting that every scan aligns and
+    flags no other tile misplaced."""
     pipeline = InspectionPipeline(scene.structure, None, InspectionSettings())
     simulator = KinectSimulator(seed=seeds[0])
     rng = np.random.default_rng(seeds[1])
     results = []
     for bearing in bearings:
-        view = view_from(scene.centre, math.radians(bearing), 1.0, rng)
+        view = view_from(scene.centre, math.radians(bearing), distance, rng)
         result = pipeline.inspect(simulator.scan(scene.kinect_scene, view.camera),
                                   OverheadPose(*view.overhead))
         assert result.ok, result.reason

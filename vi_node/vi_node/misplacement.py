@@ -64,6 +64,10 @@ class MisplacementSettings:
     disturbed_pixels: int = 15  # ... and at least this many disagree with its planned pose
     rival_share: float = 0.75  # another type lies there when it explains this share of the pixels where
     rival_pixels: int = 20  # ... the two types differ, and at least this many (`type_hypotheses`)
+    look_alike: float = 0.5  # another type whose footprint shares this much of the union with the tile's ...
+    rival_doubt_pixels: int = 1  # ... keeps it from being shown in place when it explains as many of the
+    # pixels where the two differ as the tile's own type, and at least this many (a square where a
+    # triangle was planned: 0 to 7 and 0 to 17)
     hinted_share: float = 0.6  # a first step this share of a flag, unconfirmed: the tile is undetermined
     pin_radius: float = 0.3  # m: the other tiles' points this near a moved tile tell its motion from a misalignment ...
     pin_motion: float = 0.005  # m: ... those the motion would carry this far across their faces ...

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tiling_assembly.geometry import PlacedTile, TileShape
+from tiling_assembly.polygons import convex_overlap_area, is_convex, signed_area, triangulate
 from vi_node.evidence import EvidenceSettings, depth_tolerance, smooth
 from vi_node.pose_hypotheses import DepthImage
 from vi_node.raycast import VirtualScene
@@ -51,6 +52,11 @@ class TypeVotes:
             return False
         return self.rival_seen >= min_pixels and self.rival_seen >= share * (self.rival_seen + self.rival_missed)
 
+    def rival_as_likely(self, min_pixels: int) -> bool:
+        """Whether the rival type explains at least `min_pixels` of the pixels where the two differ,
+        and no fewer than the planned type: the tile cannot be shown to be of its planned type."""
+        return self.rival >= min_pixels and self.rival >= self.planned
+
 
 def rival_tiles(tile: PlacedTile, shapes: Mapping[str, TileShape]) -> list[PlacedTile]:
     """The tile swapped for every other type of its height (within 1 mm), at its planned pose."""
@@ -60,6 +66,28 @@ def rival_tiles(tile: PlacedTile, shapes: Mapping[str, TileShape]) -> list[Place
         for name, shape in sorted(shapes.items())
         if name != tile.type_name and abs(_height(shape) - height) < 1e-3
     ]
+
+
+def look_alike_rivals(tile: PlacedTile, shapes: Mapping[str, TileShape], share: float) -> list[PlacedTile]:
+    """Of `rival_tiles`, those whose footprint shares at least `share` of the two footprints' union
+    with the tile's (a 5 x 4.3 cm triangle and a 4 cm square: 0.5): few pixels tell such a rival from
+    the tile, and a swap leaves nearly all the tile's own pixels agreeing."""
+    own = _convex_parts(tile.footprint)
+    alike = []
+    for rival in rival_tiles(tile, shapes):
+        theirs = _convex_parts(rival.footprint)
+        shared = sum(convex_overlap_area(a, b) for a in own for b in theirs)
+        union = abs(signed_area(tile.footprint)) + abs(signed_area(rival.footprint)) - shared
+        if union > 0.0 and shared >= share * union:
+            alike.append(rival)
+    return alike
+
+
+def _convex_parts(footprint: Array) -> list[Array]:
+    """A counter-clockwise footprint as convex counter-clockwise pieces."""
+    if is_convex(footprint):
+        return [footprint]
+    return [footprint[list(corners)] for corners in triangulate(footprint)]
 
 
 def type_votes(
