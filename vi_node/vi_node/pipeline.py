@@ -186,6 +186,7 @@ class InspectionPipeline:
         self.robot_settings = settings.robot_mask()
         self.tile_shapes = {name: kind.shape for name, kind in structure.tile_types.items()}
         self._look_alikes: dict[int, list[PlacedTile]] = {}  # tile id: its look-alike rivals, at its pose
+        self._rival_scenes: dict[tuple[int, str], VirtualScene] = {}  # (tile id, type): that type alone there
         self.structure_top = float(structure.bounds[1][2])
         self._models: dict[tuple[int, ...], ExpectedModel] = {}
         self.in_hand: frozenset[int] = frozenset()
@@ -904,8 +905,11 @@ class InspectionPipeline:
             low, high = tiles_box([model.tiles[index], rival])
             window = scan.camera.box_roi(pose, low, high)
             image = DepthImage(scan.cloud, scan.camera, pose, window, None if masked is None else masked[window])
+            key = (rival.tile_id, rival.type_name)
+            if key not in self._rival_scenes:
+                self._rival_scenes[key] = VirtualScene([rival])
             yield rival, type_votes(model.scene, index, rival, image, self.evidence_settings,
-                                    (self.settings.min_range, self.settings.max_range))
+                                    (self.settings.min_range, self.settings.max_range), self._rival_scenes[key])
 
     def _align_leaving_one_out(self, scan: _Scan, level: Array, failed: ScanResult) -> ScanResult:
         """A scan that fails to align may be pulled off by one misplaced tile: with few tiles in S_a a

@@ -97,9 +97,11 @@ def type_votes(
     image: DepthImage,
     settings: EvidenceSettings,
     ranges: tuple[float, float],
+    rival_scene: VirtualScene | None = None,
 ) -> TypeVotes:
     """The votes of the depth image between tile `index` of `scene` (S_a) as planned and `rival` in
-    its place. `image.window` must cover both tiles; `image.masked` (window-sized) marks robots."""
+    its place. `image.window` must cover both tiles; `image.masked` (window-sized) marks robots.
+    `rival_scene`: the rival alone, when the caller keeps it from scan to scan."""
     rows, cols = image.window
     planned = scene.cast(image.camera, image.pose, rows, cols, *ranges)
     own = planned.tile == index
@@ -107,7 +109,7 @@ def type_votes(
     assert gone is not None
     without = np.where(own, gone.depth, planned.depth)
     without_cos = np.where(own, gone.cos_incidence, planned.cos_incidence)
-    alone = VirtualScene([rival]).cast(image.camera, image.pose, rows, cols, *ranges)
+    alone = (rival_scene or VirtualScene([rival])).cast(image.camera, image.pose, rows, cols, *ranges)
     rival_in_front = (alone.tile == 0) & (alone.depth < without)
     swapped = np.where(rival_in_front, alone.depth, without)
     swapped_cos = np.where(rival_in_front, alone.cos_incidence, without_cos)
