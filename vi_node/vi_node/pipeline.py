@@ -139,6 +139,9 @@ class _Scan:
     # (H, W) pixels masked only for lying inside a robot's box off S_a's surfaces (a subset of `masked`)
     robot_pixels: Mask | None = None
     robots: RobotBoxes | None = None  # the other robots the overhead cameras see
+    # (pose, tile index, rival type): the type votes there, asked both for a tile that disagrees and
+    # for one shown in place
+    type_votes: dict[tuple[bytes, int, str], TypeVotes] = field(default_factory=dict)
 
     def failed(self, reason: str) -> ScanResult:
         return ScanResult(ok=False, reason=reason, timings=self.timer.timings, notes=self.notes)
@@ -899,17 +902,23 @@ class InspectionPipeline:
                     rivals: Sequence[PlacedTile]) -> Iterator[tuple[PlacedTile, TypeVotes]]:
         """Tile `index` as planned against each of `rivals` in its place, one at a time
         (`type_hypotheses`)."""
+        for rival in rivals:
+            voted = (pose.tobytes(), index, rival.type_name)
+            if voted not in scan.type_votes:
+                scan.type_votes[voted] = self._votes_against(scan, pose, index, rival)
+            yield rival, scan.type_votes[voted]
+
+    def _votes_against(self, scan: _Scan, pose: Array, index: int, rival: PlacedTile) -> TypeVotes:
+        """The type votes between tile `index` as planned and `rival` in its place, from `pose`."""
         model = self.model
         masked = _either(scan.masked, scan.unjudged)
-        for rival in rivals:
-            low, high = tiles_box([model.tiles[index], rival])
-            window = scan.camera.box_roi(pose, low, high)
-            image = DepthImage(scan.cloud, scan.camera, pose, window, None if masked is None else masked[window])
-            key = (rival.tile_id, rival.type_name)
-            if key not in self._rival_scenes:
-                self._rival_scenes[key] = VirtualScene([rival])
-            yield rival, type_votes(model.scene, index, rival, image, self.evidence_settings,
-                                    (self.settings.min_range, self.settings.max_range), self._rival_scenes[key])
+        window = scan.camera.box_roi(pose, *tiles_box([model.tiles[index], rival]))
+        image = DepthImage(scan.cloud, scan.camera, pose, window, None if masked is None else masked[window])
+        alone = (rival.tile_id, rival.type_name)
+        if alone not in self._rival_scenes:
+            self._rival_scenes[alone] = VirtualScene([rival])
+        return type_votes(model.scene, index, rival, image, self.evidence_settings,
+                          (self.settings.min_range, self.settings.max_range), self._rival_scenes[alone])
 
     def _align_leaving_one_out(self, scan: _Scan, level: Array, failed: ScanResult) -> ScanResult:
         """A scan that fails to align may be pulled off by one misplaced tile: with few tiles in S_a a
