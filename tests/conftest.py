@@ -80,3 +80,17 @@ def stop_node_process(process: subprocess.Popen[str]) -> str:
     for noise in ("Traceback", "terminate called"):
         assert noise not in output, output[-3000:]
     return output
+
+
+def stop_node_processes(processes: dict[str, subprocess.Popen[str]]) -> dict[str, str]:
+    """`stop_node_process` for every one of `processes`, even after one failed to stop cleanly (a
+    process left running keeps publishing /clock on a ROS domain the next test may claim); their
+    output by name."""
+    outputs, failures = {}, []
+    for name, process in processes.items():
+        try:
+            outputs[name] = stop_node_process(process)
+        except AssertionError as failure:
+            failures.append(f"{name}: {failure}")
+    assert not failures, "\n".join(failures)
+    return outputs

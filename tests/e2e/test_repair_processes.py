@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-from conftest import REPO, STRUCTURES, ros2_command, stop_node_process
+from conftest import REPO, STRUCTURES, ros2_command, stop_node_processes
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from ros_helpers.isolated_domains import IsolatedDomain, fresh_domain
@@ -100,7 +100,7 @@ class Team:
     def close(self) -> dict[str, str]:
         self.executor.shutdown()
         self.node.destroy_node()
-        return {name: stop_node_process(process) for name, process in self.processes.items()}
+        return stop_node_processes(self.processes)
 
 
 @pytest.fixture

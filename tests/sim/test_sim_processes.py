@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import REPO, STRUCTURES, ros2_command, stop_node_process
+from conftest import REPO, STRUCTURES, ros2_command, stop_node_processes
 from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
@@ -130,8 +130,7 @@ class Simulator:
     def close(self) -> dict[str, str]:
         self.executor.shutdown()
         self.node.destroy_node()
-        outputs = {name: stop_node_process(process) for name, process in self.processes.items()}
-        return outputs
+        return stop_node_processes(self.processes)
 
 
 @pytest.fixture(scope="module")
