@@ -124,7 +124,6 @@ class SimWorld(Node):
     def start_clock(self) -> None:
         self.clock.start(time.monotonic())
         self.body_hold.starting(self.robots, self.clock.now, self.settings.start_window)
-        self.hold.starting(self.vi_robots, time.monotonic(), self.settings.vi_start_window)
 
     def tick(self) -> None:
         for robot in self.hold.lapsed(time.monotonic(), self.clock.now):
