@@ -170,6 +170,25 @@ def test_the_clock_stops_for_a_scan_the_explorer_waits_for_until_it_is_judged_an
     assert hold.pace(3.2) is Pace.FAST
 
 
+def test_the_clock_stays_at_its_start_until_every_vi_robot_has_set_off() -> None:
+    """Its explorer waits some wall time to find the other VI robots: a first goal that came when a
+    busy host let it (once 0.8 s of wall time, 15 s simulated, after the start) started the VI
+    robot's whole path late, and every detection with it."""
+    hold = ScanHold(limit=30.0)
+    hold.starting(["vi1", "vi2"], wall=100.0, patience=12.0)
+    hold.hold(0, wall=100.1, robot="vi1", stop=False, period=5.0)  # its first frame, streamed
+    assert hold.pace(100.5) is Pace.STOPPED
+    hold.moved("vi1", until=20.0)
+    assert hold.pace(101.0) is Pace.STOPPED  # vi2 still chooses
+    hold.moved("vi2", until=None)
+    assert hold.pace(101.0) is Pace.FAST
+    alone = ScanHold(limit=30.0)
+    alone.starting(["vi"], wall=100.0, patience=12.0)
+    assert alone.pace(111.9) is Pace.STOPPED
+    assert alone.lapsed(112.1) == []  # no fault: an explorer may have been stopped
+    assert alone.pace(112.1) is Pace.FAST
+
+
 def test_a_streamed_scan_holds_the_clock_a_period_after_it_until_the_next_snapshot() -> None:
     """A vi_node that falls behind holds time back: the next frame comes a period later however
     long it took to judge this one (a busy host judges the same scans as a quiet one)."""

@@ -27,7 +27,7 @@ from ros_helpers.isolated_domains import fresh_domain
 from ros_helpers.spinning import spin_until
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import String
+from std_msgs.msg import Empty, String
 
 from tiling_assembly.polygons import convex_hull_2d
 from tiling_assembly.structure_file import load_structure
@@ -309,6 +309,24 @@ def test_a_vi_base_that_wakes_late_reports_the_arrival_the_world_was_told_of(sim
     assert result.success
     assert sim.spin_until(lambda: bool(arrivals), 5.0), "no motion on /sim/motion"
     assert stamp_to_nanoseconds(result.final_pose.header.stamp) == round(arrivals[-1] * 1e9)
+
+
+def test_every_robot_is_seen_where_it_starts_when_simulated_time_starts() -> None:
+    """The VI robot's explorer chooses its first viewpoint from its overhead pose while the world
+    holds the clock at the start for it: the pose comes at the start, not with a first frame that
+    the held clock never lets come (the explorer used to wait 10 s of wall time for it)."""
+    bed = Simulator(world_arguments=("-p", "wait_for_start:=true"))
+    try:
+        start = bed.node.create_publisher(Empty, "/sim/start", SIM_EVENTS)
+        assert bed.spin_until(lambda: start.get_subscription_count() > 0, 60.0), "sim_world never came up"
+        bed.spin_until(lambda: False, DISCOVERY_SETTLING)
+        assert not bed.vi_poses
+        start.publish(Empty())
+        assert bed.spin_until(lambda: bool(bed.vi_poses), 5.0), "no overhead pose of the VI robot at the start"
+        assert stamp_to_nanoseconds(bed.vi_poses[0].header.stamp) == 0
+        assert not bed.clouds  # the clock stays at its start: no frame yet
+    finally:
+        bed.close()
 
 
 def test_a_robot_standing_at_a_cache_keeps_another_from_it_until_patience_runs_out() -> None:

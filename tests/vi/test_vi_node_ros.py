@@ -396,6 +396,28 @@ def test_scans_are_inspected_while_the_simulated_clock_stands_still(probe: Probe
         assert node.poll() is None
 
 
+def test_a_camera_that_comes_up_later_is_read_as_it_is_offered_before_the_simulated_clock_runs(
+        probe: Probe) -> None:
+    """`auto` reliability follows the publishers on the steady clock: on the simulated one (not yet
+    running at a trial's start) the reliable Kinect stream stayed on a best-effort reader, which
+    loses fragmented clouds, and the trial's first scan was lost."""
+    camera = "/vi_late/camera/depth/points"
+
+    def readers() -> list[ReliabilityPolicy]:
+        return [i.qos_profile.reliability for i in probe.node.get_subscriptions_info_by_topic(camera)]
+
+    args = [ros2_command(), "run", "vi_node", "vi_node", "--ros-args", "-r", "__ns:=/vi_late",
+            "-p", f"structure_file:={PAPER}", "-p", "use_sim_time:=true"]
+    process = subprocess.Popen(args, cwd=REPO, env=probe.domain.environ(), stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
+    try:
+        assert probe.spin_until(lambda: readers() == [ReliabilityPolicy.BEST_EFFORT], 30), readers()
+        probe.node.create_publisher(PointCloud2, camera, QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+        assert probe.spin_until(lambda: readers() == [ReliabilityPolicy.RELIABLE], 10), readers()
+    finally:
+        stop_node_process(process)
+
+
 def record_one_scan(path: Path, scene: Scene, bearing: float) -> Path:
     """A bag of one scan of `scene` at 100 s from `bearing` (rad), 1 m away, with its overhead pose."""
     view = view_from(scene.centre, bearing, 1.0, np.random.default_rng(5))

@@ -234,6 +234,16 @@ class Experiment:
                 for role, robot in self.computers() for node in (*role.nodes, *role.simulated_by)]
         return ["/sim_world", *team]
 
+    def sensor_readers(self) -> list[tuple[str, str]]:
+        """(topic, node): each VI robot's vi_node reading its camera and its overhead pose (see
+        `ExperimentObserver.unread_sensors`)."""
+        return [(f"{ns}/{topic}", f"{ns}/vi_node")
+                for ns in self.vi_namespaces() for topic in ("camera/depth/points", "overhead_pose")]
+
+    def vi_namespaces(self) -> list[str]:
+        return [role.namespace_of(robot) for role, robot in self.computers()
+                if any(node.executable == "vi_node" for node in role.nodes)]
+
     def run_trial(self, setup: TrialSetup, progress: str) -> TrialRecord:
         record = TrialRecord(trial=setup.trial, seed=setup.seed, removals_planned=setup.removals,
                              wrong_landings_planned=setup.misplacements + setup.wrong_tiles,
@@ -279,7 +289,7 @@ class Experiment:
                 record.failure = f"{', '.join(dead)} exited (see {logs})"
                 return
             if started_wall is None:
-                waiting = observer.ready_to_start(self.expected_nodes())
+                waiting = observer.ready_to_start(self.expected_nodes(), self.sensor_readers())
                 if not waiting:
                     observer.start()
                     started_wall = time.monotonic()

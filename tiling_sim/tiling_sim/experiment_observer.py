@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import json
 
+from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import ReliabilityPolicy
 from std_msgs.msg import Empty, String
 
 from tiling_assembly_msgs.msg import (
@@ -46,8 +48,8 @@ STATE_NAMES = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING, TileState
 
 
 class ExperimentObserver(Node):
-    def __init__(self, record: TrialRecord, robots: list[str]) -> None:
-        super().__init__(f"experiment_observer_{record.trial}",
+    def __init__(self, record: TrialRecord, robots: list[str], context: Context | None = None) -> None:
+        super().__init__(f"experiment_observer_{record.trial}", context=context,
                          parameter_overrides=[Parameter("use_sim_time", value=True)])
         self.record = record
         self.robots = robots
@@ -72,10 +74,12 @@ class ExperimentObserver(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     # --- start --------------------------------------------------------------------------------
-    def ready_to_start(self, expected_nodes: list[str]) -> list[str]:
-        """What the trial still waits for before simulated time may run (empty: ready)."""
+    def ready_to_start(self, expected_nodes: list[str], sensor_readers: list[tuple[str, str]] = ()) -> list[str]:
+        """What the trial still waits for before simulated time may run (empty: ready);
+        `sensor_readers`: (topic, node) pairs, see `unread_sensors`."""
         names = {f"{ns.rstrip('/')}/{name}" for name, ns in self.get_node_names_and_namespaces()}
         waiting = [n for n in expected_nodes if n not in names]
+        waiting += self.unread_sensors(sensor_readers)
         if not self.world_started:
             waiting.append("the world's first event")
         if not self.record.plans:
@@ -84,6 +88,24 @@ class ExperimentObserver(Node):
         # reaches robots at different moments), would start late on simulated time
         waiting += [f"{r}'s heartbeat with its driver ready and its task taken up" for r in self.robots
                     if r not in self.heard_from]
+        return waiting
+
+    def unread_sensors(self, sensor_readers: list[tuple[str, str]]) -> list[str]:
+        """The (topic, node) pairs where the node does not read the topic yet as its publishers offer
+        it. A node is listed before its constructor has subscribed, and a best-effort reader of a
+        reliable cloud loses it (Fast DDS drops fragmented samples there) until vi_node's `auto`
+        switches: a scan taken meanwhile is lost, and the VI robot's path, and every detection after
+        it, would depend on how fast the host started the processes."""
+        waiting = []
+        for topic, node in sensor_readers:
+            publishers = self.get_publishers_info_by_topic(topic)
+            readers = [i for i in self.get_subscriptions_info_by_topic(topic)
+                       if f"{i.node_namespace.rstrip('/')}/{i.node_name}" == node]
+            reliable = bool(publishers) and all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+                                                for i in publishers)
+            if not publishers or not readers or (
+                    reliable and all(i.qos_profile.reliability != ReliabilityPolicy.RELIABLE for i in readers)):
+                waiting.append(f"{node} reading {topic}" + (" reliably, as it is offered" if reliable else ""))
         return waiting
 
     def start(self) -> None:

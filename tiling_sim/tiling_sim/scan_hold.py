@@ -13,6 +13,10 @@ same simulated time on a quiet host and on a busy one.
   while vi_node judged the streamed frames: under a CPU hog 45 of 67 scans of a misplacement run
   went unjudged, and the figures of a run depended on what else the host was doing.)
 
+- The start: the clock stays at its start until every VI robot has set off for its first viewpoint
+  (its explorer takes a few seconds of wall time to find the other VI robots before it chooses; a
+  first goal that came when a busy host let it would start the VI robot's whole path late).
+
 Each VI robot holds the clock for its own scans; with several, the tightest hold counts. A hold its
 body never ends (the body died, its messages were lost) lapses after `limit` s of wall time (a
 ceiling: counted from when the clock reached it), so the world's clock never stays stopped for good.
@@ -46,10 +50,18 @@ class _Hold:
 class ScanHold:
     limit: float  # s of wall time a hold may last at most
     _holds: dict[str, _Hold] = field(default_factory=dict)  # VI robot -> its latest scan's hold
+    _first_goals: dict[str, float] = field(default_factory=dict)  # VI robot -> wall time (s) it may set off by
 
     def pace(self, wall: float) -> Pace:
         """The clock's pace at `wall` (s)."""
-        return Pace.STOPPED if any(hold.stops(wall) for hold in self._holds.values()) else Pace.FAST
+        held = any(hold.stops(wall) for hold in self._holds.values())
+        return Pace.STOPPED if held or any(wall < by for by in self._first_goals.values()) else Pace.FAST
+
+    def starting(self, robots: list[str], wall: float, patience: float) -> None:
+        """Simulated time starts at wall time `wall` (s): it stays there until each of `robots` sets
+        off for its first viewpoint, within `patience` s of wall time."""
+        for robot in robots:
+            self._first_goals[robot] = wall + patience
 
     def ceiling(self) -> float | None:
         """The simulated time (s) the clock may not pass now; None: it may run."""
@@ -90,6 +102,7 @@ class ScanHold:
     def moved(self, robot: str = "", until: float | None = None) -> None:
         """`robot`'s base sets off: it takes no frames on the way; the clock does not pass `until` (s:
         its arrival, settled; None: no limit) until the frame taken there."""
+        self._first_goals.pop(robot, None)
         self._holds.pop(robot, None)
         if until is not None:
             self._holds[robot] = _Hold(0, float("inf"), False, until + CEILING_MARGIN, arrival=until)
@@ -97,6 +110,7 @@ class ScanHold:
     def lapsed(self, wall: float, now: float = 0.0) -> list[str]:
         """The robots whose hold has lasted longer than `limit` at `wall` (a ceiling: since the clock,
         at `now` s, reached it); their holds end now."""
+        self._first_goals = {robot: by for robot, by in self._first_goals.items() if wall < by}  # no fault
         for robot in list(self._holds):
             self._end_stop(robot, wall)
         over = []

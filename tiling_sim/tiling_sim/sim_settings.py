@@ -142,6 +142,9 @@ class WorldSettings(SimLayout):
     start_window: float = setting(
         1.0, "s of wall time simulated time stays at its start for the assembly robots' first goals (a "
         "robot on a loaded host would otherwise begin seconds late).")
+    vi_start_window: float = setting(
+        12.0, "s of wall time simulated time stays at its start at most until every VI robot has set off for its "
+        "first viewpoint (its explorer waits a few seconds of wall time to find the other VI robots).")
     body_hold_limit: float = setting(
         5.0, "Longest the clock waits (s of wall time) at the end of an assembly robot's phase for its body "
         "to say what it does next before running on without it: the body died or its link is down.")
@@ -157,9 +160,9 @@ class WorldSettings(SimLayout):
         if self.removals < 0 or self.removal_window_end < self.removal_window_start:
             raise _bad(source, "parameter 'removals' must not be negative and the removal window "
                              "must not end before it starts")
-        if self.scan_hold_limit <= 0 or self.body_hold_limit <= 0 or self.start_window < 0:
+        if self.scan_hold_limit <= 0 or self.body_hold_limit <= 0 or self.start_window < 0 or self.vi_start_window < 0:
             raise _bad(source, "parameters 'scan_hold_limit' and 'body_hold_limit' must be positive, "
-                             "'start_window' not negative")
+                             "'start_window' and 'vi_start_window' not negative")
 
 
 @dataclass(frozen=True)

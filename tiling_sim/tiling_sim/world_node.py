@@ -86,8 +86,6 @@ class SimWorld(Node):
         self.clock = SimClock(s.real_time_factor)
         self.hold = ScanHold(s.scan_hold_limit)
         self.body_hold = BodyHold(s.body_hold_limit)
-        if not s.wait_for_start:
-            self.start_clock()
 
         self.clock_pub = self.create_publisher(ClockMsg, "/clock", CLOCK)
         self.event_pub = self.create_publisher(String, sim.EVENTS, SIM_EVENTS)
@@ -99,6 +97,8 @@ class SimWorld(Node):
         self.create_subscription(SimScanProgress, sim.SCAN_PROGRESS, self.on_scan_progress, SIM_SCAN_PROGRESS)
         self.create_subscription(Empty, sim.START, self.on_start, SIM_EVENTS)
         self.create_timer(s.clock_step, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        if not s.wait_for_start:
+            self.start_clock()
         self.event("started", robots=self.robots, structure=structure.name,
                    removal_times=[round(t, 1) for t in faults.removal_times],
                    misplaced_tiles=sorted(faults.misplaced_tiles), wrong_type_tiles=sorted(faults.wrong_type_tiles))
@@ -124,6 +124,12 @@ class SimWorld(Node):
     def start_clock(self) -> None:
         self.clock.start(time.monotonic())
         self.body_hold.starting(self.robots, self.clock.now, self.settings.start_window)
+        self.hold.starting(self.vi_robots, time.monotonic(), self.settings.vi_start_window)
+        # the overhead cameras see every robot where it starts: an explorer chooses its first viewpoint from
+        # there (without, it waited 10 s of wall time for a frame that the held clock never let come)
+        stamp = stamp_from_seconds(self.clock.now)
+        for name, publisher in self.overhead_pubs.items():
+            publisher.publish(self.overhead_pose(name, stamp))
 
     def tick(self) -> None:
         for robot in self.hold.lapsed(time.monotonic(), self.clock.now):

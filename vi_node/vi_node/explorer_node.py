@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionClient
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from tiling_assembly.geometry import quaternion_from_rotation, rotation_from_rpy
@@ -158,9 +159,10 @@ class ExplorerNode(Node):
         self.other_robots = OtherRobots(self, str(settings.other_robots), self.team.add,
                                         lambda line: self.get_logger().warn(line, throttle_duration_sec=10.0))
         self.other_robots.follow()
-        self.create_timer(1.0, self.other_robots.follow)
+        graph = Clock(clock_type=ClockType.STEADY_TIME)  # who is there: the middleware's graph, not the world
+        self.create_timer(1.0, self.other_robots.follow, clock=graph)
         self.claims = ViewpointClaims(self, float(settings.claim_age))
-        self.create_timer(1.0, self.claims.follow)
+        self.create_timer(1.0, self.claims.follow, clock=graph)
 
         self.navigate = ActionClient(self, NavigateTo, "navigate_to")
         self.create_subscription(Structure, "/structure", self.on_structure, LATCHED)
@@ -170,6 +172,8 @@ class ExplorerNode(Node):
         self.create_subscription(RobotStatus, "/robot_status", self.on_robot_status, HEARTBEATS)
         self.create_subscription(PoseStamped, "overhead_pose", self.on_own_pose, OTHER_ROBOT_POSES)
         self.create_timer(0.5, self.tick)
+        # the first goal goes on wall time: a simulator holds its clock at the start until it does
+        self.create_timer(0.5, self.tick_before_a_first_goal, clock=Clock(clock_type=ClockType.STEADY_TIME))
         if self.structure_file:
             self.set_structure(load_structure(self.structure_file))
 
@@ -303,6 +307,10 @@ class ExplorerNode(Node):
             self.idle_until, self.waiting_on = now + float(self.settings.idle_wait), set(self.exploration.unresolved())
             return
         self.go_to(self.candidates[index], score)
+
+    def tick_before_a_first_goal(self) -> None:
+        if self.here is None and not self.driving:
+            self.tick()
 
     def ready_for_a_first_goal(self) -> bool:
         """The first viewpoint is chosen once this robot knows where it stands and the other VI robots

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
+from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
@@ -127,13 +128,16 @@ class ViNode(Node):
         self.states_pub = self.create_publisher(TileStateArray, "/tile_states", 10)
         self.markers_pub = self.create_publisher(MarkerArray, "/tile_markers", 10)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        # the middleware's graph, not the world: on the steady clock (a simulated clock that has not started,
+        # or a paused bag, would leave a reliable cloud on a best-effort reader, which loses it)
+        graph = Clock(clock_type=ClockType.STEADY_TIME)
         if self.settings.sensor_reliability == "auto":
-            self.create_timer(0.5, self._match_sensor_publishers)
+            self.create_timer(0.5, self._match_sensor_publishers, clock=graph)
         self.other_robots = OtherRobots(
             self, self.settings.other_robots, self.team.add, lambda line: self._diagnose(DiagnosticStatus.WARN, line)
         )
         self.other_robots.follow()
-        self.create_timer(1.0, self.other_robots.follow)
+        self.create_timer(1.0, self.other_robots.follow, clock=graph)
         self._update_expected()
         self._apply_news()
         self.inspection_thread.start()

@@ -1,0 +1,58 @@
+"""vi_explorer as a real ROS 2 process."""
+
+from __future__ import annotations
+
+import subprocess
+import time
+
+import pytest
+from conftest import stop_node_process
+from geometry_msgs.msg import PoseStamped
+from rclpy.action import ActionServer, GoalResponse
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from ros_helpers.isolated_domains import fresh_domain
+from vi_helpers import REPO, STRUCTURES, ros2_command
+
+from tiling_assembly_msgs.action import NavigateTo
+from tiling_ros.qos import OTHER_ROBOT_POSES
+
+pytestmark = pytest.mark.ros
+
+
+def test_the_first_viewpoint_is_chosen_while_the_simulated_clock_still_stands_at_its_start() -> None:
+    """A simulator holds its clock at the start until every VI robot has set off: the explorer's
+    first goal goes on wall time (on the simulated clock it waited for the clock, which waited for
+    it, and a first goal that came when a busy host let it started the VI robot's path late)."""
+    domain = fresh_domain()
+    node = Node("explorer_probe", context=domain.context)
+    executor = SingleThreadedExecutor(context=domain.context)
+    executor.add_node(node)
+    goals: list[NavigateTo.Goal] = []
+
+    def accept(goal: NavigateTo.Goal) -> GoalResponse:
+        goals.append(goal)
+        return GoalResponse.REJECT  # where it went is all this test asks
+
+    ActionServer(node, NavigateTo, "/vi/navigate_to", execute_callback=lambda handle: NavigateTo.Result(),
+                 goal_callback=accept)
+    own_pose = node.create_publisher(PoseStamped, "/vi/overhead_pose", OTHER_ROBOT_POSES)
+    args = [ros2_command(), "run", "vi_node", "vi_explorer", "--ros-args", "-r", "__ns:=/vi",
+            "-p", f"structure_file:={STRUCTURES / 'paper_14.yaml'}", "-p", "use_sim_time:=true"]
+    process = subprocess.Popen(args, cwd=REPO, env=domain.environ(), stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 60.0
+        while not goals and time.monotonic() < deadline:
+            pose = PoseStamped()
+            pose.header.frame_id = "map"
+            pose.pose.position.x, pose.pose.orientation.w = 1.5, 1.0
+            own_pose.publish(pose)  # stamped 0: no /clock ever runs here
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        output = stop_node_process(process)
+        executor.shutdown()
+        node.destroy_node()
+    assert goals, f"no navigate_to goal without a running simulated clock: {output}"
+    target = goals[0].target
+    assert target.header.stamp.sec == 0 and target.header.stamp.nanosec == 0
