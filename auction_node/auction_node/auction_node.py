@@ -143,7 +143,7 @@ class AuctionNode(Node):
         self.in_lost_hands: dict[str, tuple[int, float]] = {}  # lost robot -> (tile in its hands, node time)
         self.lost_tile_grace = float(settings.lost_tile_grace)
         self.under_repair: set[int] = set()  # tiles auctioned for repair and not yet placed again
-        self.told_deferred: dict[int, int] = {}  # tile -> the wrong tile on it its verdicts last waited for
+        self.told_deferred: dict[int, int] = {}  # tile -> the wrong tile on or under it it last waited for
 
         self.announce_pub = topics.ANNOUNCEMENTS.publisher(self)
         self.award_pub = topics.AWARDS.publisher(self)
@@ -319,7 +319,10 @@ class AuctionNode(Node):
         for tile_id, wrong in self.detector.deferred.items():
             if tile_id in called_wrong and self.told_deferred.get(tile_id) != wrong:
                 self.told_deferred[tile_id] = wrong
-                self.decide(f"tile {tile_id} looks wrong or missing, but tile {wrong} on it lies wrong (or may): "
+                on_it = wrong in self.detector.above.get(tile_id, ())
+                where = (f"tile {wrong} on it lies wrong (or may)" if on_it
+                         else f"it rests on tile {wrong}, which lies wrong")
+                self.decide(f"tile {tile_id} looks wrong or missing, but {where}: "
                             f"judged again once that tile is judged or repaired")
 
     def on_plan(self, msg: AssemblyPlan) -> None:

@@ -30,7 +30,11 @@ A tile with a wrong tile on it (resting on it, directly or through others) canno
 wrong tile's faces, where the plan has none, look like its own moved or gone (a long rectangle's
 place holding an octagon made the square under its end look turned 33 degrees). Its verdicts
 neither confirm nor clear until that tile is placed right again, or taken off; nor while a tile on
-it is suspected (called misplaced, not yet confirmed): the one on top is judged first.
+it is suspected (called misplaced, not yet confirmed): the one on top is judged first. Nor can a tile
+resting on a tile confirmed lying wrong: it lies where the wrong tile holds it, not where the plan
+does (a triangle put on an octagon in a long rectangle's place, by a placement under way when the
+repair was auctioned, looked missing, and a second robot was sent to place it while the repairing
+robot took it off to put it back). The repair takes it off and puts it back, so it waits for that.
 """
 
 from __future__ import annotations
@@ -124,6 +128,10 @@ class MismatchDetector:
                 return above
         return None
 
+    def wrong_under(self, tile_id: int) -> int | None:
+        """A tile confirmed lying wrong that `tile_id` rests on (directly or not); None if none."""
+        return next((below for below in sorted(self.lying_wrong) if tile_id in self.above.get(below, ())), None)
+
     def unplaced(self, tile_id: int) -> None:
         """`tile_id` is known not to be in the structure as planned (found missing or lying wrong, taken
         off, or given up)."""
@@ -158,6 +166,8 @@ class MismatchDetector:
 
     def _defer(self, tile_id: int) -> bool:
         wrong = self.wrong_on(tile_id)
+        if wrong is None:
+            wrong = self.wrong_under(tile_id)
         if wrong is not None:
             self.deferred[tile_id] = wrong
         return wrong is not None

@@ -201,3 +201,25 @@ def test_a_tile_a_robot_found_in_the_way_defers_what_it_rests_on() -> None:
     assert detector.deferred == {5: 10}
     detector.taken_off(10)
     assert detector.sensed({5: MISSING}, at=2.0, view=(1.0, 0.0)) == [5]
+
+
+def test_a_tile_placed_on_a_wrong_one_after_its_repair_was_auctioned_waits_for_that_repair() -> None:
+    """paper_14, seed 13: triangle 13 was being placed on 11 when 11 was confirmed lying wrong (an
+    octagon in its place). 13 lies where the octagon holds it: the repair takes it off and puts it
+    back, and no scan of it counts until then."""
+    detector = MismatchDetector(confirmations=2, min_view_change=0.15, above={11: frozenset({13})})
+    detector.placed(11, at=0.0)
+    detector.lies_wrong(11)
+    detector.placed(13, at=5.0)  # the placement under way lands on the wrong tile
+    assert detector.sensed({13: MISSING}, at=6.0, view=(1.0, 0.0)) == []
+    assert detector.sensed({13: MISSING}, at=7.0, view=(0.0, 1.0)) == []
+    assert detector.flagged({13: True}, at=8.0, view=(-1.0, 0.0)) == []
+    assert detector.flagged({13: True}, at=9.0, view=(0.0, -1.0)) == []
+    assert detector.deferred == {13: 11} and detector.q[13] == 1
+    # the repair: 13 off, 11 off, the right 11 in, 13 back; then 13 is judged as any tile
+    detector.taken_off(13)
+    detector.taken_off(11)
+    detector.placed(11, at=20.0)
+    detector.placed(13, at=21.0)
+    assert detector.sensed({13: MISSING}, at=22.0, view=(1.0, 0.0)) == []
+    assert detector.sensed({13: MISSING}, at=23.0, view=(0.0, 1.0)) == [13]
