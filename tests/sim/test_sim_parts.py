@@ -315,6 +315,33 @@ def test_the_world_waits_for_vi_node_only_while_it_answers() -> None:
     assert cycle.overdue(18.9) is frame and not cycle.answering  # a dead one is not
 
 
+def test_a_goal_decided_on_a_frame_sets_off_at_a_time_that_frame_sets_not_when_it_came() -> None:
+    """The explorer stamps a goal with the frame whose verdict it chose on: the base sets off at that
+    frame's time if the clock stood still for it, a period later if it was streamed (the clock cannot
+    pass that before the verdict), whenever the goal reaches the body."""
+    cycle = ScanCycle(period=5.0, verdict_timeout=15.0)
+    cycle.arrived(10.0)
+    held = cycle.start(10.2, wall=0.0)
+    assert held is not None and held.held and cycle.snapshot_arrived(held, 10_200_000_000)
+    cycle.published(held, wall=0.1)
+    cycle.judged(10_200_000_000, wall=0.2)
+    streamed = cycle.start(15.2, wall=0.3)
+    assert streamed is not None and not streamed.held and cycle.snapshot_arrived(streamed, 15_200_000_000)
+    assert cycle.departure(10_200_000_000, now=10.2) == pytest.approx(10.2)
+    assert cycle.departure(15_200_000_000, now=16.0) == pytest.approx(20.2)  # came early: waits
+    assert cycle.departure(15_200_000_000, now=23.0) == pytest.approx(20.2)  # came late: as if in time
+    assert cycle.departure(12_000_000_000, now=16.0) == 16.0  # no frame of that time: now
+    assert cycle.departure(15_200_000_000, now=40.0) == 40.0  # far off: a stale goal sets off now
+    cycle.published(streamed, wall=0.4)
+    cycle.judged(15_200_000_000, wall=0.5)
+    for k in range(1, 12):  # only the latest frames are remembered
+        frame = cycle.start(15.2 + 5 * k, wall=1.0 + k)
+        assert frame is not None and cycle.snapshot_arrived(frame, 15_200_000_000 + 5_000_000_000 * k)
+        cycle.published(frame, wall=1.0 + k)
+        cycle.judged(15_200_000_000 + 5_000_000_000 * k, wall=1.0 + k)
+    assert cycle.departure(10_200_000_000, now=11.0) == 11.0 and len(cycle.taken) == 8
+
+
 # --- the world's referee ----------------------------------------------------------------------
 def test_placement_steps_give_the_old_events_in_order() -> None:
     referee = WorldReferee(PhysicalWorld(PAPER), FaultInjector(seed=1))

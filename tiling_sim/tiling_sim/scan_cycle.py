@@ -11,15 +11,23 @@ explorer stopped for: the world holds its clock for it (see `scan_hold`).
 
 A frame goes through three stages: asked (the world's snapshot is on its way), rendering (in the
 body's own thread) and published (vi_node judges it).
+
+The explorer decides where to go next on a frame's verdict, and stamps its goal with that frame's
+time (`departure`): the base sets off at that frame's time when the explorer stopped for it (the
+world's clock stood still there while it was judged), and a period later for a frame streamed while
+the base stood, when the next frame is due, which the world's clock cannot pass before the verdict.
+So the base leaves at the same simulated time on a quiet host and on a busy one, however long the
+verdict took (it used to leave when the goal came: anywhere within the period, by the load).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from tiling_sim.sim_interface import VI_SETTLE
 
 VIEWING_TIMEOUT = 3.0  # s of wall time a frame waits for a verdict while vi_node does not answer
+REMEMBERED_FRAMES = 8  # the latest frames whose stamps a goal may name
 
 
 @dataclass
@@ -40,6 +48,7 @@ class ScanCycle:
     arrival_due: bool = False  # the next frame is the one the explorer stopped for
     frame: Frame | None = None  # the frame in its stages, if any
     answering: bool = False  # vi_node judged a frame and has missed none since: the world waits for it
+    taken: dict[int, bool] = field(default_factory=dict)  # stamp (ns) -> held, of the latest frames
 
     def __post_init__(self) -> None:
         self.next_at = self.next_at or self.period
@@ -55,6 +64,17 @@ class ScanCycle:
         self.next_at = now + self.settle
         self.arrival_due = True
 
+    def departure(self, decided_ns: int, now: float) -> float:
+        """When the base sets off (s of simulated time) for a goal decided on the verdict of the frame
+        stamped `decided_ns`, at `now`: that frame's time when the explorer stopped for it, a period
+        later when it was streamed; `now` for a goal stamped otherwise (decided on the explorer's own
+        timer, or by someone else) or one that names a time two periods or more from now."""
+        held = self.taken.get(decided_ns)
+        if held is None:
+            return now
+        at = decided_ns * 1e-9 + (0.0 if held else self.period)
+        return at if abs(at - now) < 2 * self.period else now
+
     def start(self, now: float, wall: float) -> Frame | None:
         """A new frame when one is due at `now` (simulated s); None otherwise."""
         if self.moving or self.frame is not None or now < self.next_at - 1e-9:
@@ -69,6 +89,9 @@ class ScanCycle:
         if self.frame is not frame:
             return False
         frame.stamp_ns = stamp_ns
+        self.taken[stamp_ns] = frame.held
+        while len(self.taken) > REMEMBERED_FRAMES:
+            del self.taken[next(iter(self.taken))]
         # a period after the world's time, not this body's (which lags): the world holds its clock there
         self.next_at = stamp_ns * 1e-9 + self.period
         return True

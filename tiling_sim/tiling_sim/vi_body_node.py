@@ -113,13 +113,19 @@ class SimVi(Node):
         yaw = rpy_from_rotation(rotation_from_quaternion(o.x, o.y, o.z, o.w))[2]
         goal = (target.position.x, target.position.y, yaw)
         with self.lock:
+            # set off at the time of the frame the goal was decided on (see ScanCycle.departure), not
+            # when the goal came; no frames meanwhile: the world's clock waits at the next frame's time
+            depart_at = self.cycle.departure(stamp_to_nanoseconds(handle.request.target.header.stamp),
+                                             self.time.now)
             self.cycle.departed()
             # a frame the world waits for comes on arrival only when vi_node answers (see ScanCycle)
             framed = self.cycle.answering and self.cloud_pub.get_subscription_count() > 0
         feedback = NavigateTo.Feedback(distance_remaining=float(math.dist(self.pose[:2], goal[:2])))
         feedback.current_pose = self.pose_msg(self.time.now)
         handle.publish_feedback(feedback)
-        arrive_at = self.time.now + drive_time_to_pose(self.motion, self.pose, goal)
+        if depart_at > self.time.now:
+            await self.time.until(depart_at)
+        arrive_at = depart_at + drive_time_to_pose(self.motion, self.pose, goal)
         self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=goal[0], y=goal[1], yaw=goal[2],
                                           busy=framed))
         with self.lock:

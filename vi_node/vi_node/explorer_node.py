@@ -9,7 +9,9 @@ currently targeted building region), `/auction/announcements`
 (tiles no longer expected), `/tile_states` (what the scans of every VI robot judged). Out: goals to
 the base's `navigate_to` action. After each arrival it waits for the first tile states of a scan
 its own robot took there (`robot_name`; vi_node answers every scan: tile states, or why it has
-none), then chooses again. With several VI robots, each claims its next viewpoint
+none), then chooses again. While it stays, it chooses again on the states of its own robot's next
+scans. A goal chosen on a scan's states is stamped with that scan's time: what it knew as of then
+(a simulated base sets off at a time set by that stamp, not by when the goal reached it). With several VI robots, each claims its next viewpoint
 (`viewpoint_claims`) and leaves the others' to them (`exploration`). The other
 robots' overhead poses (`other_robots`, as vi_node follows them) tell it what they hide and where it
 cannot stand: a robot parked beside the structure blinds every viewpoint behind it.
@@ -45,7 +47,7 @@ from tiling_assembly_msgs.msg import (
 from tiling_ros.parameters import declare_settings, setting
 from tiling_ros.qos import COORDINATION, HEARTBEATS, LATCHED, OTHER_ROBOT_POSES, REPORTS
 from tiling_ros.spinning import run_node
-from tiling_ros.stamps import is_zero, stamp_to_nanoseconds, stamp_to_seconds
+from tiling_ros.stamps import is_zero, stamp_from_seconds, stamp_to_nanoseconds, stamp_to_seconds
 from vi_node.camera_model import PinholeCamera
 from vi_node.evidence import EvidenceSettings
 from vi_node.exploration import (
@@ -152,6 +154,7 @@ class ExplorerNode(Node):
         self.started_wall = time.monotonic()
         self.arrived_at: float | None = None  # s (node clock); None while driving
         self.idle_until = -math.inf  # s (node clock): staying put, no better place to look from
+        self.latest_scan = -math.inf  # s: the stamp of the latest states of this robot's own scans
         self.waiting_on: set[int] = set()  # the tiles unresolved when the stay began
         self.driving = False
         self.repeats = RepeatFilter()
@@ -251,19 +254,36 @@ class ExplorerNode(Node):
                                 stamp, view)
         if msg.robot_name and msg.robot_name != self.robot_name:
             return  # another VI robot's scan: what it saw counts, but this robot's wait goes on
+        self.latest_scan = max(self.latest_scan, stamp)
         if self.arrived_at is not None and stamp >= self.arrived_at + self.settle - STAMP_SLACK:
             if msg.problem and self.here is not None:  # the scan taken here gave no states
                 self.get_logger().info(f"no tile states from this viewpoint ({msg.problem}); trying another")
-                self.exploration.viewpoint_failed(self.candidates.index(self.here), self.now())
+                self.exploration.viewpoint_failed(self.candidates.index(self.here), stamp)
             self.arrived_at = None  # this viewpoint is done
-            self.tick()
+            self.tick(decided_on=stamp)
+        elif self.arrived_at is None and not self.driving and not self.staying(stamp):
+            self.tick(decided_on=stamp)  # a scan streamed while it stays: time to choose again
 
-    def tick(self) -> None:
+    def staying(self, at: float) -> bool:
+        """Whether the robot goes on staying where it stands at `at` (s): its stay lasts and no tile
+        became unresolved since it began."""
+        return at < self.idle_until and set(self.exploration.unresolved()) <= self.waiting_on
+
+    def scans_stream(self, now: float) -> bool:
+        """Whether this robot's own scans' states keep coming while it stays: then it chooses on them
+        (at their time), not on its timer (at whatever time the clock shows when the host lets it)."""
+        return now - max(self.latest_scan, self.idle_until) < 2 * self.scan_timeout
+
+    def tick(self, decided_on: float | None = None) -> None:
+        """Choose the next viewpoint; `decided_on`: the stamp (s) of this robot's scan whose states
+        prompt the choice (None: the timer's, at the clock's time)."""
         if self.structure is None or self.driving or self.scene is None or not self.scene_tiles:
             return
         if self.here is None and not self.ready_for_a_first_goal():
             return
-        now = self.now()
+        now = self.now() if decided_on is None else decided_on
+        if decided_on is None and self.arrived_at is None and self.here is not None and self.scans_stream(now):
+            return  # staying: the next scan's states prompt the next choice
         if self.arrived_at is not None and now < self.arrived_at + self.scan_timeout:
             return  # still waiting for the verdict of a scan from here
         if self.arrived_at is not None:
@@ -272,7 +292,7 @@ class ExplorerNode(Node):
             if self.here is not None:
                 self.exploration.viewpoint_failed(self.candidates.index(self.here), now)
             self.arrived_at = None
-        if now < self.idle_until and set(self.exploration.unresolved()) <= self.waiting_on:
+        if self.staying(now):
             return
         if not self.navigate.server_is_ready():
             self.get_logger().warn("navigate_to is not available", throttle_duration_sec=10.0)
@@ -282,7 +302,7 @@ class ExplorerNode(Node):
         low = np.min([t.aabb[0] for t in tiles], axis=0)
         high = np.max([t.aabb[1] for t in tiles], axis=0)
         poses = [OverheadPose(*c) for c in self.candidates]
-        robots = self.team.at(self.get_clock().now().nanoseconds, int(ROBOT_POSE_AGE * 1e9))
+        robots = self.team.at(round(now * 1e9), int(ROBOT_POSE_AGE * 1e9))  # where they stood then
         blocking = RobotBoxes(robots, ROBOT_BOXES) if robots else None
         claimed = self.claims.current(now)
 
@@ -306,7 +326,7 @@ class ExplorerNode(Node):
             # a frame every settle time (0.2 s), sooner than a robot's vi_node judges one
             self.idle_until, self.waiting_on = now + float(self.settings.idle_wait), set(self.exploration.unresolved())
             return
-        self.go_to(self.candidates[index], score)
+        self.go_to(self.candidates[index], score, now)
 
     def tick_before_a_first_goal(self) -> None:
         if self.here is None and not self.driving:
@@ -321,17 +341,17 @@ class ExplorerNode(Node):
         self.other_robots.follow()
         return (self.start is not None and waited >= FIRST_GOAL_DISCOVERY) or waited >= FIRST_GOAL_PATIENCE
 
-    def go_to(self, pose: tuple[float, float, float], score: float) -> None:
+    def go_to(self, pose: tuple[float, float, float], score: float, decided_at: float) -> None:
         goal = NavigateTo.Goal()
         goal.target = PoseStamped()
         goal.target.header.frame_id = "map"
-        goal.target.header.stamp = self.get_clock().now().to_msg()
+        goal.target.header.stamp = stamp_from_seconds(decided_at)
         goal.target.pose.position.x, goal.target.pose.position.y = pose[0], pose[1]
         q = quaternion_from_rotation(rotation_from_rpy(0.0, 0.0, pose[2]))
         o = goal.target.pose.orientation
         o.x, o.y, o.z, o.w = q
         self.driving = True
-        self.claims.claim(pose, self.now())
+        self.claims.claim(pose, decided_at)
         unresolved = self.exploration.unresolved()
         self.get_logger().info(
             f"next viewpoint ({pose[0]:+.2f}, {pose[1]:+.2f}, {math.degrees(pose[2]):+.0f} deg), score {score:.1f}; "
