@@ -12,9 +12,8 @@ from rclpy.action import ActionServer, GoalResponse
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from ros_helpers.isolated_domains import fresh_domain
-from vi_helpers import REPO, STRUCTURES, ros2_command
-
 from rosgraph_msgs.msg import Clock
+from vi_helpers import REPO, STRUCTURES, ros2_command
 
 from tiling_assembly_msgs.action import NavigateTo
 from tiling_assembly_msgs.msg import TileStateArray

@@ -5,14 +5,14 @@ its `vi_node`.
 A thin adapter around `exploration.Exploration` and `viewpoint.rank_viewpoints`. In: the latched
 `/structure`, `/placement_reports` (tiles claimed placed, and supports a robot found absent: the
 priority), `/robot_status` (the tiles each robot places now and next: their supports are the
-currently targeted building region), `/auction/announcements`
-(tiles no longer expected), `/tile_states` (what the scans of every VI robot judged). Out: goals to
-the base's `navigate_to` action. After each arrival it waits for the first tile states of a scan
-its own robot took there (`robot_name`; vi_node answers every scan: tile states, or why it has
-none), then chooses again. While it stays, it chooses again on the states of its own robot's next
-scans. A goal chosen on a scan's states is stamped with that scan's time: what it knew as of then
-(a simulated base sets off at a time set by that stamp, not by when the goal reached it). With several VI robots, each claims its next viewpoint
-(`viewpoint_claims`) and leaves the others' to them (`exploration`). The other
+currently targeted building region), `/auction/announcements` (tiles no longer expected),
+`/tile_states` (what the scans of every VI robot judged). Out: goals to the base's `navigate_to`
+action. After each arrival it waits for the first tile states of a scan its own robot took there
+(`robot_name`; vi_node answers every scan: tile states, or why it has none), then chooses again.
+While it stays, it chooses again on the states of its own robot's next scans. A goal chosen on a
+scan's states is stamped with that scan's time: what it knew as of then (a simulated base sets off
+at a time set by that stamp, not by when the goal reached it). With several VI robots, each claims
+its next viewpoint (`viewpoint_claims`) and leaves the others' to them (`exploration`). The other
 robots' overhead poses (`other_robots`, as vi_node follows them) tell it what they hide and where it
 cannot stand: a robot parked beside the structure blinds every viewpoint behind it.
 """
