@@ -44,6 +44,24 @@ def test_a_tile_a_robot_found_absent_is_looked_at_first_until_a_scan_judges_it()
     assert exploration.priority(now=131.0)[1] == 2.0  # now a missing call to confirm
 
 
+def test_a_choice_made_as_of_a_scan_knows_only_what_had_happened_by_then() -> None:
+    """News stamped after the scan a choice is made on (a placement, an absence, heard while the scan
+    was judged: more of it on a busy host) has not happened yet for that choice; a tile S_a did not
+    hold then counts for nothing."""
+    exploration = _explored()
+    exploration.placed(1, now=140.0)
+    exploration.suspected(2, now=145.0)
+    exploration.expect([1, 2, 3, 4, 5])
+    exploration.placed(5, now=150.0)
+    then = exploration.priority(now=130.0, among=[1, 2, 3, 4])
+    assert then[1] == pytest.approx(30.0 / 60.0) and then[2] == pytest.approx(30.0 / 60.0) and 5 not in then
+    assert exploration.unresolved(130.0, among=[1, 2, 3, 4]) == [3, 4]
+    later = exploration.priority(now=150.0)
+    assert later[1] == 4.0 and later[2] == 5.0 and later[5] == 4.0
+    assert exploration.unresolved() == [1, 2, 3, 4, 5]
+    assert exploration.priority(now=130.0, among=[6])[6] == 2.0  # expected then, never judged: undetermined
+
+
 def test_supports_of_the_next_placements_are_looked_at_again_once_their_last_look_is_old() -> None:
     """The currently targeted building region: a support seen present long ago is worth a look
     before a robot places on it (a tile removed meanwhile stops that robot); one seen a moment ago

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -142,19 +142,34 @@ class Exploration:
         return any(now - at < self.blind_memory and math.dist(pose[:2], (x, y)) < self.blind_radius
                    for x, y, at in self.left_undetermined.get(tile_id, ()))
 
-    def priority(self, now: float, left_to_others: Collection[int] = ()) -> dict[int, float]:
-        """Weight of seeing each expected tile now; the tiles `left_to_others` (another VI robot's
-        claimed view resolves them) keep `shared_weight` of it."""
-        out = self._own_priority(now)
+    def as_of(self, now: float, among: Iterable[int] | None = None) -> dict[int, TileKnowledge]:
+        """What was known of each tile at `now` (s; `among`: the tiles S_a held then, None: every tile
+        known): placements and absences reported for a later time had not happened yet. A choice made
+        on a scan's states is made as of that scan's time, whatever news came in while it was judged
+        (on a busy host more of it), so the VI robot takes the same path on a quiet host and a busy one."""
+        out = {}
+        for tile_id in self.tiles if among is None else among:
+            k = self.tiles.get(tile_id, TileKnowledge())
+            if k.placed_at > now or k.suspected_at > now:
+                k = replace(k, placed_at=k.placed_at if k.placed_at <= now else -math.inf,
+                            suspected_at=k.suspected_at if k.suspected_at <= now else -math.inf)
+            out[tile_id] = k
+        return out
+
+    def priority(self, now: float, left_to_others: Collection[int] = (),
+                 among: Iterable[int] | None = None) -> dict[int, float]:
+        """Weight of seeing each expected tile (`among`, see `as_of`) at `now`; the tiles
+        `left_to_others` (another VI robot's claimed view resolves them) keep `shared_weight` of it."""
+        out = self._own_priority(now, among)
         for tile_id in left_to_others:
             if tile_id in out:
                 out[tile_id] *= self.shared_weight
         return out
 
-    def _own_priority(self, now: float) -> dict[int, float]:
+    def _own_priority(self, now: float, among: Iterable[int] | None) -> dict[int, float]:
         w = self.weights
         out = {}
-        for tile_id, k in self.tiles.items():
+        for tile_id, k in self.as_of(now, among).items():
             if k.suspected_at > k.judged_at:
                 out[tile_id] = w.suspected
             elif k.placed_at > k.judged_at:
@@ -168,9 +183,11 @@ class Exploration:
                     out[tile_id] = max(out[tile_id], recheck)
         return out
 
-    def unresolved(self) -> list[int]:
+    def unresolved(self, now: float = math.inf, among: Iterable[int] | None = None) -> list[int]:
+        """The expected tiles (`among`, see `as_of`) not seen in place since they were placed or
+        reported absent, as of `now` (s)."""
         return sorted(
-            t for t, k in self.tiles.items()
+            t for t, k in self.as_of(now, among).items()
             if max(k.placed_at, k.suspected_at) > k.judged_at or k.state in (OCCLUDED, UNKNOWN, MISSING)
         )
 

@@ -76,6 +76,7 @@ ROBOT_BOXES = _CAMERA.robot_mask()
 ROBOT_POSE_AGE = 60.0  # s: a robot's latest overhead pose stands for it that long (robots wait long)
 FIRST_GOAL_DISCOVERY = 3.0  # s of wall time for the other VI robots to be discovered before the first goal
 FIRST_GOAL_PATIENCE = 10.0  # s of wall time after which the first goal goes without this robot's own pose
+STATUS_CHANGES = 20  # the latest changes of what each assembly robot works on, kept for choices made as of a scan
 STAMP_SLACK = 1e-6  # s: a frame taken at the arrival + settle may be stamped a nanosecond short of it
 
 
@@ -146,9 +147,11 @@ class ExplorerNode(Node):
         self.candidates: list[tuple[float, float, float]] = []
         self.placed: dict[int, int] = {}  # tile -> stamp (ns) of its latest placement report
         self.withdrawn: dict[int, int] = {}  # tile -> stamp (ns) of its latest announcement
-        self.working_on: dict[str, tuple[int, ...]] = {}  # assembly robot -> the tiles it places now and next
+        # assembly robot -> (stamp ns, the tiles it places now and next), its latest changes
+        self.working_on: dict[str, list[tuple[int, tuple[int, ...]]]] = {}
         self.scene: VirtualScene | None = None  # S_a for ray tracing candidate views
         self.scene_tiles: tuple[int, ...] = ()
+        self.earlier_scene: tuple[tuple[int, ...], VirtualScene] | None = None  # S_a as of an earlier time
         self.here: tuple[float, float, float] | None = None
         self.start: tuple[float, float, float] | None = None  # the overhead cameras' pose before the first goal
         self.started_wall = time.monotonic()
@@ -188,12 +191,36 @@ class ExplorerNode(Node):
         self.candidates = ring_viewpoints(structure, self.radii, self.per_ring)
         self.update_expected()
 
-    def expected(self) -> list[int]:
+    def expected(self, as_of: float = math.inf) -> list[int]:
+        """The tiles S_a held at `as_of` (s) by the reports stamped until then (before any: all of them)."""
         if self.structure is None:
             return []
-        if not self.placed:
+        until = math.inf if math.isinf(as_of) else round(as_of * 1e9)
+        placed = {t: stamp for t, stamp in self.placed.items() if stamp <= until}
+        if not placed:
             return self.structure.tile_ids
-        return sorted(t for t, stamp in self.placed.items() if self.withdrawn.get(t, -1) < stamp)
+        withdrawn = {t: stamp for t, stamp in self.withdrawn.items() if stamp <= until}
+        return sorted(t for t, stamp in placed.items() if withdrawn.get(t, -1) < stamp)
+
+    def scene_of(self, tiles: tuple[int, ...]) -> VirtualScene:
+        """S_a of `tiles` for ray tracing (the current one, or that of an earlier time)."""
+        if tiles == self.scene_tiles and self.scene is not None:
+            return self.scene
+        if self.earlier_scene is None or self.earlier_scene[0] != tiles:
+            assert self.structure is not None
+            self.earlier_scene = (tiles, VirtualScene([self.structure.tiles[t] for t in tiles]))
+        return self.earlier_scene[1]
+
+    def supports_worked_on(self, as_of: float) -> set[int]:
+        """The supports of what each robot placed now and next at `as_of` (s): the targeted region."""
+        assert self.structure is not None
+        until = round(as_of * 1e9)
+        supports = self.structure.supports
+        out: set[int] = set()
+        for changes in self.working_on.values():
+            working = next((tiles for stamp, tiles in reversed(changes) if stamp <= until), ())
+            out.update(s for t in working for s in supports.get(t, ()))
+        return out
 
     def update_expected(self) -> None:
         expected = self.expected()
@@ -209,9 +236,10 @@ class ExplorerNode(Node):
             self.get_logger().error(f"ignoring /structure: {error}")
 
     def on_report(self, msg: PlacementReport) -> None:
+        reported = stamp_to_seconds(msg.header.stamp)
         if msg.outcome == PlacementReport.OUTCOME_SUPPORT_MISSING:
             for support in msg.missing_supports:
-                self.exploration.suspected(support, self.now())
+                self.exploration.suspected(support, reported)
             absent = ", ".join(map(str, msg.missing_supports))
             self.get_logger().info(f"{msg.robot_name} found tile(s) {absent} absent: looking there first")
             return
@@ -219,23 +247,22 @@ class ExplorerNode(Node):
             return
         self.placed[msg.tile_id] = stamp_to_nanoseconds(msg.header.stamp)
         self.update_expected()
-        self.exploration.placed(msg.tile_id, self.now())
+        self.exploration.placed(msg.tile_id, reported)
 
     def on_announcement(self, msg: AuctionAnnouncement) -> None:
         self.withdrawn[msg.tile_id] = stamp_to_nanoseconds(msg.header.stamp)
         self.update_expected()
 
     def on_robot_status(self, msg: RobotStatus) -> None:
-        """Where the building happens: the supports of what each robot places now and next."""
+        """Where the building happens: what each robot places now and next, from when (its heartbeats
+        repeat it; a change is stamped when it happened)."""
         busy = msg.state in (RobotStatus.WAITING, RobotStatus.PLACING)
         working = tuple(msg.remaining_tiles[:2]) if busy else ()
-        if self.working_on.get(msg.robot_name) == working or self.structure is None:
+        changes = self.working_on.setdefault(msg.robot_name, [])
+        if changes and changes[-1][1] == working:
             return
-        self.working_on[msg.robot_name] = working
-        supports = self.structure.supports
-        self.exploration.targeted(
-            s for tiles in self.working_on.values() for t in tiles for s in supports.get(t, ())
-        )
+        changes.append((stamp_to_nanoseconds(msg.header.stamp), working))
+        del changes[:-STATUS_CHANGES]
 
     def on_own_pose(self, msg: PoseStamped) -> None:
         """Where the robot stands before its first goal (VI robots start apart: each looks near itself)."""
@@ -267,7 +294,7 @@ class ExplorerNode(Node):
     def staying(self, at: float) -> bool:
         """Whether the robot goes on staying where it stands at `at` (s): its stay lasts and no tile
         became unresolved since it began."""
-        return at < self.idle_until and set(self.exploration.unresolved()) <= self.waiting_on
+        return at < self.idle_until and set(self.exploration.unresolved(at, self.expected(at))) <= self.waiting_on
 
     def scans_stream(self, now: float) -> bool:
         """Whether this robot's own scans' states keep coming while it stays: then it chooses on them
@@ -297,36 +324,48 @@ class ExplorerNode(Node):
         if not self.navigate.server_is_ready():
             self.get_logger().warn("navigate_to is not available", throttle_duration_sec=10.0)
             return
+        expected = self.expected(now)
+        if not expected:
+            return  # nothing stood at that time: nothing to look at
+        index, score = self.choose(now, expected)
+        if self.candidates[index] == self.here:
+            # the camera's frames go on while it stands; stopping for another look from here would take
+            # a frame every settle time (0.2 s), sooner than a robot's vi_node judges one
+            self.idle_until = now + float(self.settings.idle_wait)
+            self.waiting_on = set(self.exploration.unresolved(now, expected))
+            return
+        self.go_to(self.candidates[index], score, now, self.exploration.unresolved(now, expected))
+
+    def choose(self, now: float, expected: list[int]) -> tuple[int, float]:
+        """The best next viewpoint (index into the candidates) and its score, as known at `now` (s)."""
+        assert self.structure is not None
         here = self.here or self.start or self.candidates[0]
-        tiles = [self.structure.tiles[t] for t in self.scene_tiles]
+        scene = self.scene_of(tuple(expected))
+        tiles = [self.structure.tiles[t] for t in expected]
         low = np.min([t.aabb[0] for t in tiles], axis=0)
         high = np.max([t.aabb[1] for t in tiles], axis=0)
         poses = [OverheadPose(*c) for c in self.candidates]
         robots = self.team.at(round(now * 1e9), int(ROBOT_POSE_AGE * 1e9))  # where they stood then
         blocking = RobotBoxes(robots, ROBOT_BOXES) if robots else None
         claimed = self.claims.current(now)
+        self.exploration.targeted(self.supports_worked_on(now))
 
         def rank(at: list[OverheadPose], wanted: dict[int, float], robots: RobotBoxes | None) -> list[ViewpointScore]:
-            return rank_viewpoints(self.scene, low, high, self.camera, self.mount, at, wanted, self.evidence,
+            return rank_viewpoints(scene, low, high, self.camera, self.mount, at, wanted, self.evidence,
                                    min_range=self.range[0], max_range=self.range[1], robots=robots)
 
         # the claimer stands at its claim soon: only the structure hides its view there
-        theirs = rank([OverheadPose(*c) for c in claimed], self.exploration.priority(now), None) if claimed else []
-        priority = self.exploration.priority(now, left_to_others={t for r in theirs for t in r.resolves})
+        theirs = rank([OverheadPose(*c) for c in claimed], self.exploration.priority(now, among=expected),
+                      None) if claimed else []
+        priority = self.exploration.priority(now, left_to_others={t for r in theirs for t in r.resolves},
+                                             among=expected)
         ranked = rank(poses, priority, blocking)
         gain_of = {(r.pose.x, r.pose.y, r.pose.yaw): self.exploration.gain((r.pose.x, r.pose.y, r.pose.yaw),
                                                                             r.resolves, priority, now)
                    for r in ranked}
         gains = [gain_of[(p.x, p.y, p.yaw)] for p in poses]
         neighbours = [(p.x, p.y, p.yaw) for p in self.team.latest(self.claims.robots())]
-        index, score = self.exploration.choose(self.candidates, here, now, gains, claimed=claimed,
-                                               neighbours=neighbours)
-        if self.candidates[index] == self.here:
-            # the camera's frames go on while it stands; stopping for another look from here would take
-            # a frame every settle time (0.2 s), sooner than a robot's vi_node judges one
-            self.idle_until, self.waiting_on = now + float(self.settings.idle_wait), set(self.exploration.unresolved())
-            return
-        self.go_to(self.candidates[index], score, now)
+        return self.exploration.choose(self.candidates, here, now, gains, claimed=claimed, neighbours=neighbours)
 
     def tick_before_a_first_goal(self) -> None:
         if self.here is None and not self.driving:
@@ -341,7 +380,8 @@ class ExplorerNode(Node):
         self.other_robots.follow()
         return (self.start is not None and waited >= FIRST_GOAL_DISCOVERY) or waited >= FIRST_GOAL_PATIENCE
 
-    def go_to(self, pose: tuple[float, float, float], score: float, decided_at: float) -> None:
+    def go_to(self, pose: tuple[float, float, float], score: float, decided_at: float,
+              unresolved: list[int]) -> None:
         goal = NavigateTo.Goal()
         goal.target = PoseStamped()
         goal.target.header.frame_id = "map"
@@ -352,10 +392,9 @@ class ExplorerNode(Node):
         o.x, o.y, o.z, o.w = q
         self.driving = True
         self.claims.claim(pose, decided_at)
-        unresolved = self.exploration.unresolved()
         self.get_logger().info(
-            f"next viewpoint ({pose[0]:+.2f}, {pose[1]:+.2f}, {math.degrees(pose[2]):+.0f} deg), score {score:.1f}; "
-            f"unresolved tiles {unresolved}"
+            f"next viewpoint ({pose[0]:+.2f}, {pose[1]:+.2f}, {math.degrees(pose[2]):+.0f} deg), score {score:.1f}, "
+            f"chosen as of t={decided_at:.3f} s; unresolved tiles {unresolved}"
         )
         self.navigate.send_goal_async(goal).add_done_callback(lambda f: self.on_goal(f, pose))
 
