@@ -296,23 +296,28 @@ def test_a_frame_is_given_up_without_a_snapshot_or_a_verdict_in_time() -> None:
 
 
 def test_the_world_waits_for_vi_node_only_while_it_answers() -> None:
-    """Before vi_node's first verdict, and after it missed one, frames go to whoever views them
-    without holding the world back, and are given up sooner."""
+    """From the start vi_node is counted on; after it missed a verdict, frames go to whoever views
+    them without holding the world back, and are given up sooner, until it answers one again."""
     cycle = ScanCycle(period=1.0, verdict_timeout=15.0)
     frame = cycle.start(1.0, wall=0.0)
-    assert frame is not None and not cycle.answering
+    assert frame is not None and cycle.answering
     cycle.snapshot_arrived(frame, 1_000_000_000)
     cycle.published(frame, wall=0.1)
-    assert cycle.overdue(3.2) is frame and not cycle.answering  # nobody judges: a viewer's timeout
-    frame = cycle.start(2.0, wall=3.3)
+    assert cycle.overdue(3.2) is None  # the first verdict is waited for too
+    assert cycle.overdue(15.2) is frame and not cycle.answering  # nobody judges
+    frame = cycle.start(2.0, wall=15.3)
     cycle.snapshot_arrived(frame, 2_000_000_000)
-    cycle.published(frame, wall=3.4)
-    assert cycle.judged(2_000_000_000, wall=3.6) is not None and cycle.answering
-    frame = cycle.start(3.0, wall=3.7)
+    cycle.published(frame, wall=15.4)
+    assert cycle.overdue(18.5) is frame  # a viewer's timeout
+    frame = cycle.start(3.0, wall=18.6)
     cycle.snapshot_arrived(frame, 3_000_000_000)
-    cycle.published(frame, wall=3.8)
-    assert cycle.overdue(10.0) is None  # a busy vi_node is waited for
-    assert cycle.overdue(18.9) is frame and not cycle.answering  # a dead one is not
+    cycle.published(frame, wall=18.7)
+    assert cycle.judged(3_000_000_000, wall=18.9) is not None and cycle.answering
+    frame = cycle.start(4.0, wall=19.0)
+    cycle.snapshot_arrived(frame, 4_000_000_000)
+    cycle.published(frame, wall=19.1)
+    assert cycle.overdue(25.0) is None  # a busy vi_node is waited for
+    assert cycle.overdue(34.2) is frame and not cycle.answering  # a dead one is not
 
 
 def test_a_goal_decided_on_a_frame_sets_off_at_a_time_that_frame_sets_not_when_it_came() -> None:

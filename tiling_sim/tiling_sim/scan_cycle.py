@@ -4,10 +4,13 @@ While the base stands, a frame every `period` s of simulated time, never before 
 answered the last one (or `verdict_timeout` s of wall time have passed without an answer, a lost
 frame or a dead vi_node); the world does not let its clock pass a frame's stamp + `period` until the
 next frame's snapshot (see `scan_hold`), so the frames come a period apart however busy the host.
-Only while vi_node answers: before its first verdict, and after it missed one, frames go out for
-whoever views them (`ros2 topic echo`, rviz) without holding the world back, each given up after
-`VIEWING_TIMEOUT` s. After the base arrives at a viewpoint it waits `settle` s, and the next frame is the one the
-explorer stopped for: the world holds its clock for it (see `scan_hold`).
+Only while vi_node answers: it is counted on from the start (the experiment starts the clock once
+it reads the camera; before, the first frame the explorer stopped for was taken whenever the body
+asked for it, and the VI robot's whole path moved with it); after it missed a verdict, frames go out
+for whoever views them (`ros2 topic echo`, rviz) without holding the world back, each given up
+after `VIEWING_TIMEOUT` s, until it answers one again. After the base arrives at a viewpoint it
+waits `settle` s, and the next frame is the one the explorer stopped for: the world holds its clock
+for it (see `scan_hold`).
 
 A frame goes through three stages: asked (the world's snapshot is on its way), rendering (in the
 body's own thread) and published (vi_node judges it).
@@ -47,7 +50,7 @@ class ScanCycle:
     moving: bool = False
     arrival_due: bool = False  # the next frame is the one the explorer stopped for
     frame: Frame | None = None  # the frame in its stages, if any
-    answering: bool = False  # vi_node judged a frame and has missed none since: the world waits for it
+    answering: bool = True  # vi_node has missed no verdict (or judged one since): the world waits for it
     taken: dict[int, bool] = field(default_factory=dict)  # stamp (ns) -> held, of the latest frames
 
     def __post_init__(self) -> None:
