@@ -39,3 +39,14 @@ def test_at_the_start_every_robot_may_begin_its_first_goal_within_its_patience()
     assert hold.ceiling() == 0.0  # robot1 still holds until it declares its first phase
     hold.busy_until("robot1", 4.0)
     assert hold.ceiling() == 4.0
+
+
+def test_the_robots_still_deciding_at_a_time_are_those_the_clock_waits_for_there() -> None:
+    hold = BodyHold(limit=5.0)
+    hold.busy_until("robot1", 157.05)
+    hold.busy_until("robot2", 160.0)
+    assert hold.deciding(157.05) == ["robot1"]
+    hold.busy_until("robot1", 162.0)  # it said what it does next
+    assert hold.deciding(157.05) == []
+    hold.idle("robot2")
+    assert hold.deciding(160.0) == []

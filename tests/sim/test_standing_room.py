@@ -28,6 +28,20 @@ def test_a_spot_another_robot_holds_is_refused_until_it_has_gone_and_the_wait_is
     assert room.ask("robot2", (0.3, 0.2), now=16.0) == ([], None)  # moving on its own spot: no wait
 
 
+def test_robots_asking_at_the_same_time_are_answered_in_the_teams_order() -> None:
+    """Two robots setting off together: the one later in the team waits while one before it is still
+    deciding what it does at that time and has not asked, whatever order their requests came in."""
+    team = ["robot1", "robot2", "robot3"]
+    room = StandingRoom(HALF, {"robot1": (0.0, 0.0), "robot2": (2.0, 0.0), "robot3": (4.0, 0.0)})
+    assert room.ahead("robot2", 157.05, team, deciding=["robot1", "robot2"]) == ["robot1"]
+    assert room.ahead("robot1", 157.05, team, deciding=["robot1", "robot2"]) == []
+    room.ask("robot1", (1.0, 1.0), now=157.05)
+    assert room.ahead("robot2", 157.05, team, deciding=["robot1", "robot2"]) == []  # it asked
+    assert room.ahead("robot3", 160.0, team, deciding=["robot1", "robot2", "robot3"]) == ["robot1", "robot2"]
+    assert room.ahead("robot3", 160.0, team, deciding=["robot3"]) == []  # the others went on
+    assert room.ahead("vi", 160.0, team, deciding=team) == []  # not one of the team's bodies
+
+
 def test_a_robot_that_insists_stands_there_anyway_and_the_crowding_is_recorded() -> None:
     room = StandingRoom(HALF, {"robot1": (0.0, 0.0), "robot2": (2.0, 0.0)})
     room.ask("robot2", (0.2, 0.0), now=0.0)

@@ -45,6 +45,10 @@ class BodyHold:
         """`robot` has nothing under way: it holds nothing."""
         self._promises.pop(robot, None)
 
+    def deciding(self, now: float) -> list[str]:
+        """The robots whose news of what they do at `now` (s) is still due: the clock waits for them."""
+        return [robot for robot, promise in self._promises.items() if promise.due <= now + 1e-9]
+
     def ceiling(self) -> float | None:
         """The simulated time (s) the clock may not pass now; None: it may run."""
         return min((p.due for p in self._promises.values()), default=None)

@@ -29,6 +29,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.task import Future
 from rclpy.timer import Timer
 
 from tiling_assembly.polygons import convex_hull_2d
@@ -56,6 +57,7 @@ from tiling_sim.standing_room import alternative_spot
 
 Result = PlaceTile.Result
 Removal = RemoveTile.Result
+ASK_AGAIN_PAUSE = 0.02  # s of wall time before asking the world for room again (see standing_room)
 
 
 class SimRobot(Node):
@@ -305,12 +307,26 @@ class SimRobot(Node):
         self.motion_pub.publish(SimMotion(robot=self.name, arrive_at=arrive_at, x=x, y=y, yaw=0.0, busy=busy))
 
     async def ask(self, step: int, tile_id: int = 0, **where: Any) -> SimPlace.Response:
-        """The world's answer to one step of a placement (FAILED_HARDWARE's reason when none comes)."""
-        answer = await self.world.call(SimPlace.Request(robot=self.name, tile_id=tile_id, step=step, **where))
-        if answer is None:
-            raise WorldSilentError(f"the simulated world did not answer on {sim.PLACE} within "
-                              f"{sim.WORLD_PATIENCE:g} s")
-        return answer
+        """The world's answer to one step of a placement (FAILED_HARDWARE's reason when none comes).
+        Asked for room while a robot before this one in the team may still ask at the same time, it
+        asks again a moment of wall time later (the world's clock waits meanwhile)."""
+        while True:
+            answer = await self.world.call(SimPlace.Request(robot=self.name, tile_id=tile_id, step=step, **where))
+            if answer is None:
+                raise WorldSilentError(f"the simulated world did not answer on {sim.PLACE} within "
+                                       f"{sim.WORLD_PATIENCE:g} s")
+            if answer.outcome != SimPlace.Response.ASK_AGAIN:
+                return answer
+            await self.wall_pause(ASK_AGAIN_PAUSE)
+
+    async def wall_pause(self, seconds: float) -> None:
+        done = Future()
+        timer = self.create_timer(seconds, lambda: done.done() or done.set_result(None),
+                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
+        try:
+            await done
+        finally:
+            self.destroy_timer(timer)
 
     def pose_msg(self, at: float) -> PoseStamped:
         """Where the base is at `at` (s): the body knows its own pose exactly (the overhead cameras'

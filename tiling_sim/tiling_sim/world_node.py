@@ -201,7 +201,13 @@ class SimWorld(Node):
         return response
 
     def going_to(self, request: SimPlace.Request, response: SimPlace.Response, now: float) -> SimPlace.Response:
-        """May the robot's base stand at (x, y)? Not where another robot stands or is going (`standing_room`)."""
+        """May the robot's base stand at (x, y)? Not where another robot stands or is going (`standing_room`);
+        robots asking at the same time are answered in the team's order."""
+        ahead = self.room.ahead(request.robot, now, self.robots, self.body_hold.deciding(now))
+        if ahead:
+            response.outcome = SimPlace.Response.ASK_AGAIN
+            response.reason = f"{', '.join(ahead)} may still ask for room at this time, before {request.robot}"
+            return response
         in_the_way, wait = self.room.ask(request.robot, (request.x, request.y), now, request.insist)
         if in_the_way:
             response.outcome = SimPlace.Response.ROBOT_IN_THE_WAY
