@@ -50,3 +50,16 @@ def test_the_robots_still_deciding_at_a_time_are_those_the_clock_waits_for_there
     assert hold.deciding(157.05) == []
     hold.idle("robot2")
     assert hold.deciding(160.0) == []
+
+
+def test_the_clock_stays_where_a_goal_ended_for_the_others_reactions_even_once_that_robot_goes_on() -> None:
+    hold = BodyHold(limit=5.0)
+    hold.busy_until("robot2", 157.05)  # its goal ended: it waits for its next
+    hold.reacting(157.05, window=0.5)
+    hold.busy_until("robot2", 170.0)  # its next goal began at once
+    assert hold.ceiling() == 157.05  # robot1, which waited for the tile robot2 placed, may begin at 157.05 too
+    assert hold.lapsed(now=157.05, wall=10.0) == []
+    assert hold.lapsed(now=157.05, wall=10.6) == []  # no fault: nobody failed to answer
+    assert hold.ceiling() == 170.0
+    hold.reacting(200.0, window=0.0)  # no window: nothing held
+    assert hold.ceiling() == 170.0

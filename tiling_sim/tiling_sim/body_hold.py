@@ -11,6 +11,9 @@ they would in the one process.
 A hold its body never ends (the body died, its link is down) lapses after `limit` s of wall time:
 the world's clock never stays stopped for good, and the body is held again from its next news.
 When simulated time starts, every robot holds it for a short while for its first goal (`starting`).
+When a robot's goal ends, the clock stays at that moment for a short while even once the robot goes
+on (`reacting`): the robots that waited for what it did begin then too, however the host delays
+their news (two robots setting off at one moment then ask for room in the team's order).
 """
 
 from __future__ import annotations
@@ -24,6 +27,9 @@ class _Promise:
     patience: float | None = None  # s of wall time it may hold (None: the hold's `limit`)
     expected: bool = False  # its lapse is no fault (the start: a robot may have nothing to begin with)
     held_since: float | None = None  # wall time (s) at which the clock reached `due`
+
+
+TEAM = ""  # the hold of the team's reactions to a goal's end (no robot's name)
 
 
 @dataclass
@@ -40,6 +46,11 @@ class BodyHold:
         `patience` s of wall time (a robot whose first tile waits for supports has none to begin)."""
         for robot in robots:
             self._promises.setdefault(robot, _Promise(at, patience, expected=True))
+
+    def reacting(self, at: float, window: float) -> None:
+        """A robot's goal ended at `at` (s): the clock stays there `window` s of wall time for the others."""
+        if window > 0:
+            self._promises[TEAM] = _Promise(at, window, expected=True)
 
     def idle(self, robot: str) -> None:
         """`robot` has nothing under way: it holds nothing."""

@@ -148,6 +148,11 @@ class WorldSettings(SimLayout):
     body_hold_limit: float = setting(
         5.0, "Longest the clock waits (s of wall time) at the end of an assembly robot's phase for its body "
         "to say what it does next before running on without it: the body died or its link is down.")
+    reaction_window: float = setting(
+        0.5, "s of wall time the clock stays at the moment an assembly robot's goal ended, even once that robot "
+        "has gone on: the other robots' reactions to it (a robot waiting for the tile it placed) begin at that "
+        "moment, and robots asking for room then are answered in the team's order (see "
+        "tiling_sim/standing_room.py).")
 
     def check(self, source: str) -> None:
         super().check(source)
@@ -160,9 +165,10 @@ class WorldSettings(SimLayout):
         if self.removals < 0 or self.removal_window_end < self.removal_window_start:
             raise _bad(source, "parameter 'removals' must not be negative and the removal window "
                              "must not end before it starts")
-        if self.scan_hold_limit <= 0 or self.body_hold_limit <= 0 or self.start_window < 0 or self.vi_start_window < 0:
+        if self.scan_hold_limit <= 0 or self.body_hold_limit <= 0 or min(
+                self.start_window, self.vi_start_window, self.reaction_window) < 0:
             raise _bad(source, "parameters 'scan_hold_limit' and 'body_hold_limit' must be positive, "
-                             "'start_window' and 'vi_start_window' not negative")
+                             "'start_window', 'vi_start_window' and 'reaction_window' not negative")
 
 
 @dataclass(frozen=True)

@@ -172,6 +172,8 @@ class SimWorld(Node):
             self.now()  # the time up to this news ran under the old ceiling
             if msg.busy:
                 self.body_hold.busy_until(msg.robot, msg.arrive_at)
+                if msg.arrive_at <= self.clock.now + 1e-9:  # its goal ended now: what it did, others react to
+                    self.body_hold.reacting(msg.arrive_at, self.settings.reaction_window)
             else:
                 self.body_hold.idle(msg.robot)
         self.arrive(self.now())  # a phase that ends at once (or a late message) takes effect now
