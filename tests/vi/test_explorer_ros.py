@@ -23,6 +23,22 @@ from tiling_ros.stamps import stamp_from_seconds, stamp_to_nanoseconds
 pytestmark = pytest.mark.ros
 
 
+def start_explorer(domain):  # type: ignore[no-untyped-def]
+    """vi_explorer of /vi on paper_14, on simulated time, in `domain`."""
+    args = [ros2_command(), "run", "vi_node", "vi_explorer", "--ros-args", "-r", "__ns:=/vi",
+            "-p", f"structure_file:={STRUCTURES / 'paper_14.yaml'}", "-p", "use_sim_time:=true"]
+    return subprocess.Popen(args, cwd=REPO, env=domain.environ(), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+
+
+def standing_pose() -> PoseStamped:
+    """The VI robot's overhead pose where it stands, stamped 0."""
+    pose = PoseStamped()
+    pose.header.frame_id = "map"
+    pose.pose.position.x, pose.pose.orientation.w = 1.5, 1.0
+    return pose
+
+
 def test_the_first_viewpoint_is_chosen_while_the_simulated_clock_still_stands_at_its_start() -> None:
     """A simulator holds its clock at the start until every VI robot has set off: the explorer's
     first goal goes on wall time (on the simulated clock it waited for the clock, which waited for
@@ -40,17 +56,11 @@ def test_the_first_viewpoint_is_chosen_while_the_simulated_clock_still_stands_at
     ActionServer(node, NavigateTo, "/vi/navigate_to", execute_callback=lambda handle: NavigateTo.Result(),
                  goal_callback=accept)
     own_pose = node.create_publisher(PoseStamped, "/vi/overhead_pose", OTHER_ROBOT_POSES)
-    args = [ros2_command(), "run", "vi_node", "vi_explorer", "--ros-args", "-r", "__ns:=/vi",
-            "-p", f"structure_file:={STRUCTURES / 'paper_14.yaml'}", "-p", "use_sim_time:=true"]
-    process = subprocess.Popen(args, cwd=REPO, env=domain.environ(), stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True)
+    process = start_explorer(domain)
     try:
         deadline = time.monotonic() + 60.0
         while not goals and time.monotonic() < deadline:
-            pose = PoseStamped()
-            pose.header.frame_id = "map"
-            pose.pose.position.x, pose.pose.orientation.w = 1.5, 1.0
-            own_pose.publish(pose)  # stamped 0: no /clock ever runs here
+            own_pose.publish(standing_pose())  # stamped 0: no /clock ever runs here
             executor.spin_once(timeout_sec=0.1)
     finally:
         output = stop_node_process(process)
@@ -83,17 +93,11 @@ def test_a_goal_chosen_on_a_scans_states_is_stamped_with_that_scans_time() -> No
     own_pose = node.create_publisher(PoseStamped, "/vi/overhead_pose", OTHER_ROBOT_POSES)
     clock = node.create_publisher(Clock, "/clock", CLOCK)
     states = node.create_publisher(TileStateArray, "/tile_states", COORDINATION)
-    args = [ros2_command(), "run", "vi_node", "vi_explorer", "--ros-args", "-r", "__ns:=/vi",
-            "-p", f"structure_file:={STRUCTURES / 'paper_14.yaml'}", "-p", "use_sim_time:=true"]
-    process = subprocess.Popen(args, cwd=REPO, env=domain.environ(), stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True)
+    process = start_explorer(domain)
     try:
         deadline = time.monotonic() + 60.0
         while len(goals) < 2 and time.monotonic() < deadline:
-            pose = PoseStamped()
-            pose.header.frame_id = "map"
-            pose.pose.position.x, pose.pose.orientation.w = 1.5, 1.0
-            own_pose.publish(pose)
+            own_pose.publish(standing_pose())
             if goals:  # arrived at 2.0 s; the clock ran on to 4.0 s while the scan of 2.2 s was judged
                 clock.publish(Clock(clock=stamp_from_seconds(4.0)))
                 scan = TileStateArray(robot_name="vi", problem="alignment failed: a test's scan")
