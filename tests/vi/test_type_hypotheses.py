@@ -30,9 +30,11 @@ def _swapped(tile_id: int, type_name: str) -> PlacedTile:
 
 
 def _votes(placed: dict[int, PlacedTile], tile_id: int, rival_type: str, bearing: float,
-           masked: bool = False, removed: tuple[int, ...] = ()) -> TypeVotes:
+           masked: bool = False, removed: tuple[int, ...] = (), reuse: str = "") -> TypeVotes:
     """Votes between the planned tile and `rival_type` on a simulated Kinect scan of paper_14 with
-    the tiles `placed` instead of the planned ones and without the `removed`, from the true camera pose."""
+    the tiles `placed` instead of the planned ones and without the `removed`, from the true camera
+    pose. `reuse`: cast S_a over the whole image first and hand the votes its part over their
+    window, with nothing behind it looked at ("front"), or what lies behind every other row ("rows")."""
     paper = structure()
     scene = Scene(paper, tuple(paper.tile_ids), removed, placed)
     view = view_from(scene.centre, math.radians(bearing), 1.0, np.random.default_rng(5))
@@ -43,7 +45,16 @@ def _votes(placed: dict[int, PlacedTile], tile_id: int, rival_type: str, bearing
     window = KINECT.box_roi(view.camera, *tiles_box([tiles[index], rival]))
     mask = np.ones(cloud[window].shape[:2], dtype=bool) if masked else None
     image = DepthImage(cloud, KINECT, view.camera, window, mask)
-    return type_votes(VirtualScene(tiles), index, rival, image, EvidenceSettings(), RANGES)
+    scene = VirtualScene(tiles)
+    cast = None
+    if reuse:
+        whole = scene.cast(KINECT, view.camera, slice(0, 480), slice(0, 640), *RANGES)
+        if reuse == "rows":
+            every_other_row = np.zeros(whole.tile.shape, dtype=bool)
+            every_other_row[::2] = True
+            whole = scene.look_behind(whole, KINECT, view.camera, where=every_other_row)
+        cast = whole.within(*window)
+    return type_votes(scene, index, rival, image, EvidenceSettings(), RANGES, cast=cast)
 
 
 def test_rivals_are_the_other_types_of_the_same_height_at_the_planned_pose() -> None:
@@ -118,6 +129,27 @@ def test_a_long_rectangle_that_is_gone_is_no_octagon(bearing: float) -> None:
     settings = MisplacementSettings()
     gone = _votes({}, 11, "octagon", bearing, removed=(11, 13))
     assert not gone.rival_explains(settings.rival_share, settings.rival_pixels), gone
+
+
+@pytest.mark.parametrize("reuse", ["front", "rows"])
+def test_votes_on_the_scans_own_cast_are_those_on_a_fresh_one(reuse: str) -> None:
+    triangle = _swapped(10, "triangle")
+    for placed, rival in (({10: triangle}, "triangle"), ({}, "octagon")):
+        fresh = _votes(placed, 10, rival, 20.0)
+        assert fresh.planned + fresh.rival > 10
+        assert _votes(placed, 10, rival, 20.0, reuse=reuse) == fresh
+
+
+def test_a_cast_is_cut_to_a_window_inside_it_and_to_none_beyond() -> None:
+    paper = structure()
+    view = view_from(Scene(paper, tuple(paper.tile_ids), ()).centre, 0.3, 1.0, np.random.default_rng(5))
+    whole = VirtualScene([paper.tiles[i] for i in paper.tile_ids]).cast(
+        KINECT, view.camera, slice(100, 300), slice(200, 500), *RANGES)
+    part = whole.within(slice(150, 160), slice(220, 230))
+    assert part is not None and part.depth.shape == (10, 10)
+    assert np.array_equal(part.tile, whole.tile[50:60, 20:30])
+    assert whole.within(slice(90, 160), slice(220, 230)) is None
+    assert whole.within(slice(150, 160), slice(220, 501)) is None
 
 
 def test_a_rival_out_of_sight_explains_nothing() -> None:

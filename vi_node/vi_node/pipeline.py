@@ -142,6 +142,9 @@ class _Scan:
     # (pose, tile index, rival type): the type votes there, asked both for a tile that disagrees and
     # for one shown in place
     type_votes: dict[tuple[bytes, int, str], TypeVotes] = field(default_factory=dict)
+    # the last C_v judged (with what lies behind its tiles) and the pose it was cast from: the type
+    # votes reuse its rays rather than cast them again per tile and rival
+    virtual: tuple[bytes, VirtualScan] | None = None
 
     def failed(self, reason: str) -> ScanResult:
         return ScanResult(ok=False, reason=reason, timings=self.timer.timings, notes=self.notes)
@@ -560,6 +563,7 @@ class InspectionPipeline:
                 virtual, scan.camera, pose, where=judgeable(virtual, self.evidence_settings, masked)
             )
             scan.timer.lap("look behind")
+            scan.virtual = (pose.tobytes(), virtual)
             robots = self._robots_in_front(scan, virtual, pose)
             unknown = masked if robots is None else robots if masked is None else masked | robots
             against_blank = self._blanks_against_tiles(scan, virtual, pose, unknown)
@@ -917,8 +921,14 @@ class InspectionPipeline:
         alone = (rival.tile_id, rival.type_name)
         if alone not in self._rival_scenes:
             self._rival_scenes[alone] = VirtualScene([rival])
+        cast = None
+        if scan.virtual is not None and scan.virtual[0] == pose.tobytes():
+            # what lies behind all of the tile, looked at once for all its rivals
+            whole = model.scene.complete_behind(scan.virtual[1], scan.camera, pose, where=scan.virtual[1].tile == index)
+            scan.virtual = (scan.virtual[0], whole)
+            cast = whole.within(*window)
         return type_votes(model.scene, index, rival, image, self.evidence_settings,
-                          (self.settings.min_range, self.settings.max_range), self._rival_scenes[alone])
+                          (self.settings.min_range, self.settings.max_range), self._rival_scenes[alone], cast)
 
     def _align_leaving_one_out(self, scan: _Scan, level: Array, failed: ScanResult) -> ScanResult:
         """A scan that fails to align may be pulled off by one misplaced tile: with few tiles in S_a a

@@ -67,6 +67,20 @@ class VirtualScan:
     def front(self) -> SurfaceLayer:
         return SurfaceLayer(self.depth, self.tile, self.cos_incidence)
 
+    def within(self, rows: slice, cols: slice) -> VirtualScan | None:
+        """This scan over the image window (rows, cols), behind layer included, or None when that
+        window reaches beyond this scan's (a ray's hit does not depend on the window it is cast in)."""
+        if not (self.rows.start <= rows.start <= rows.stop <= self.rows.stop
+                and self.cols.start <= cols.start <= cols.stop <= self.cols.stop):
+            return None
+        r = slice(rows.start - self.rows.start, rows.stop - self.rows.start)
+        c = slice(cols.start - self.cols.start, cols.stop - self.cols.start)
+        behind = self.behind
+        if behind is not None:
+            behind = SurfaceLayer(behind.depth[r, c], behind.tile[r, c], behind.cos_incidence[r, c])
+        return VirtualScan(rows, cols, self.depth[r, c], self.tile[r, c], self.face[r, c],
+                           self.cos_incidence[r, c], self.size, behind)
+
 
 class VirtualScene:
     """S_a (plus the floor) ready for ray casting and closest-point queries."""
@@ -170,6 +184,25 @@ class VirtualScene:
             flat_tile[on_tile] = first.tile
             flat_cos[on_tile] = _cosine(directions, first.normal)
         return replace(virtual, behind=SurfaceLayer(depth, tile, cosine))
+
+    def complete_behind(
+        self, virtual: VirtualScan, camera: PinholeCamera, pose: Array, where: NDArray[np.bool_]
+    ) -> VirtualScan:
+        """`virtual` with its `behind` layer also on the tile pixels of `where`, keeping what it holds
+        (`virtual` itself when nothing is missing)."""
+        known = virtual.behind
+        missing = where if known is None else where & (known.tile == UNSEEN)
+        if known is not None and not missing.any():
+            return virtual
+        fresh = self.look_behind(virtual, camera, pose, where=missing).behind
+        assert fresh is not None
+        if known is None:
+            return replace(virtual, behind=fresh)
+        return replace(virtual, behind=SurfaceLayer(
+            np.where(missing, fresh.depth, known.depth),
+            np.where(missing, fresh.tile, known.tile),
+            np.where(missing, fresh.cos_incidence, known.cos_incidence),
+        ))
 
     def blocked(
         self, start: Array, ends: Array, ignore: NDArray[np.int64] | None = None, margin: float = 0.004

@@ -27,7 +27,7 @@ from tiling_assembly.geometry import PlacedTile, TileShape
 from tiling_assembly.polygons import convex_overlap_area, is_convex, signed_area, triangulate
 from vi_node.evidence import EvidenceSettings, depth_tolerance, smooth
 from vi_node.pose_hypotheses import DepthImage
-from vi_node.raycast import VirtualScene
+from vi_node.raycast import VirtualScan, VirtualScene
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -98,14 +98,17 @@ def type_votes(
     settings: EvidenceSettings,
     ranges: tuple[float, float],
     rival_scene: VirtualScene | None = None,
+    cast: VirtualScan | None = None,
 ) -> TypeVotes:
     """The votes of the depth image between tile `index` of `scene` (S_a) as planned and `rival` in
     its place. `image.window` must cover both tiles; `image.masked` (window-sized) marks robots.
-    `rival_scene`: the rival alone, when the caller keeps it from scan to scan."""
+    `rival_scene`: the rival alone, when the caller keeps it from scan to scan; `cast`: `scene`
+    cast over `image.window` from `image.pose`, when the caller has it (the scan's own C_v), with
+    whatever of its behind layer it looked at."""
     rows, cols = image.window
-    planned = scene.cast(image.camera, image.pose, rows, cols, *ranges)
+    planned = cast if cast is not None else scene.cast(image.camera, image.pose, rows, cols, *ranges)
     own = planned.tile == index
-    gone = scene.look_behind(planned, image.camera, image.pose, where=own).behind
+    gone = scene.complete_behind(planned, image.camera, image.pose, where=own).behind
     assert gone is not None
     without = np.where(own, gone.depth, planned.depth)
     without_cos = np.where(own, gone.cos_incidence, planned.cos_incidence)
