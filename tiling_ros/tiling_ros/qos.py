@@ -44,7 +44,7 @@ def sensor_stream(depth: int, reliability: ReliabilityPolicy) -> QoSProfile:
 
 # -- the simulated testbed (tiling_sim) ------------------------------------------------------------
 # /clock: a body must get every tick, in order, also when its process stalls; a queue of 10 (0.2 s of
-# wall time at clock_step 0.02) dropped the ticks of a longer stall. Both ends keep 20 s of ticks.
+# wall time at clock_step 0.02) dropped the ticks of a longer stall. Both ends keep 50 s of ticks (at 0.05).
 CLOCK_DEPTH = 1000
 CLOCK = QoSProfile(depth=CLOCK_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 # /sim/motion: where a base stands from when is absolute, so a world that joins late may hear it late,

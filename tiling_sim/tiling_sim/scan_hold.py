@@ -57,6 +57,16 @@ class ScanHold:
         held = any(hold.stops(wall) for hold in self._holds.values())
         return Pace.STOPPED if held or any(wall < by for by in self._first_goals.values()) else Pace.FAST
 
+    def stopping(self, wall: float) -> list[str]:
+        """The VI robots that stop the clock at `wall` (s): a scan being judged, or a first viewpoint."""
+        judging = {robot for robot, hold in self._holds.items() if hold.stops(wall)}
+        return sorted(judging | {robot for robot, by in self._first_goals.items() if wall < by})
+
+    def at_ceiling(self, now: float) -> list[str]:
+        """The VI robots whose ceiling holds the clock at `now` (s of simulated time)."""
+        return sorted(robot for robot, hold in self._holds.items()
+                      if hold.ceiling is not None and now >= hold.ceiling - 2 * CEILING_MARGIN)
+
     def starting(self, robots: list[str], wall: float, patience: float) -> None:
         """Simulated time starts at wall time `wall` (s): it stays there until each of `robots` sets
         off for its first viewpoint, within `patience` s of wall time."""

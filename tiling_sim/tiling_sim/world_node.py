@@ -43,11 +43,12 @@ from tiling_ros.qos import CLOCK, SIM_EVENTS, SIM_MOTION, SIM_SCAN_PROGRESS
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_seconds, stamp_to_nanoseconds
 from tiling_sim import sim_interface as sim
-from tiling_sim.body_hold import BodyHold
+from tiling_sim.body_hold import TEAM, BodyHold
+from tiling_sim.clock_ledger import ClockLedger, Holder
 from tiling_sim.faults import FaultInjector, choose_wrong_tiles
 from tiling_sim.overhead_cameras import OverheadCameras, Pose2
 from tiling_sim.scan_hold import ScanHold
-from tiling_sim.sim_clock import SimClock
+from tiling_sim.sim_clock import Pace, SimClock
 from tiling_sim.sim_settings import WorldSettings
 from tiling_sim.standing_room import StandingRoom
 from tiling_sim.whereabouts import Whereabouts
@@ -86,6 +87,8 @@ class SimWorld(Node):
         self.clock = SimClock(s.real_time_factor)
         self.hold = ScanHold(s.scan_hold_limit)
         self.body_hold = BodyHold(s.body_hold_limit)
+        self.ledger = ClockLedger(s.clock_report_period)
+        self.last_tick = time.monotonic()
 
         self.clock_pub = self.create_publisher(ClockMsg, "/clock", CLOCK)
         self.event_pub = self.create_publisher(String, sim.EVENTS, SIM_EVENTS)
@@ -132,6 +135,12 @@ class SimWorld(Node):
             publisher.publish(self.overhead_pose(name, stamp))
 
     def tick(self) -> None:
+        wall = time.monotonic()
+        if self.clock.running and self.settings.clock_report_period > 0:
+            self.ledger.charge(wall, wall - self.last_tick, self.holders(wall), self.clock.now)
+            if self.ledger.due(wall):
+                self.get_logger().info(self.ledger.report(wall, self.clock.now))
+        self.last_tick = wall
         for robot in self.hold.lapsed(time.monotonic(), self.clock.now):
             self.get_logger().warn(f"{robot}'s scan held the clock for over {self.settings.scan_hold_limit:g} s "
                                    "of wall time: running on without it")
@@ -146,6 +155,15 @@ class SimWorld(Node):
         if removal is not None:
             self.get_logger().info(f"fault: tile {removal[1]['tile']} removed from the structure")
             self.publish_events([removal])
+
+    def holders(self, wall: float) -> list[Holder]:
+        """Who holds the clock at `wall` (s): the VI robots stopping it, else those at whose ceiling it stands."""
+        if self.hold.pace(wall) is Pace.STOPPED:
+            return [Holder("scan", robot) for robot in self.hold.stopping(wall)] or [Holder("scan")]
+        now = self.clock.now
+        deciding = self.body_hold.deciding(now)
+        held = [Holder("reaction") if robot == TEAM else Holder("step", robot) for robot in deciding]
+        return held + [Holder("frame", robot) for robot in self.hold.at_ceiling(now)]
 
     def arrive(self, now: float) -> None:
         for robot in self.whereabouts.arrive(now):
