@@ -40,7 +40,7 @@ from tiling_assembly.structure import Structure
 from tiling_assembly.time_model import TimeModel
 
 DEFAULT_IMPROVE_TIME_LIMIT = 1.0  # s of local search in the default method
-PAPER_START_LIMIT = 2000  # tiles up to which the default method also tries the paper's partition
+PAPER_START_LIMIT = 2000  # tiles up to which the default method also tries the paper's partition and policy
 ROBOT_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 IntArray = NDArray[np.int64]
@@ -333,6 +333,7 @@ def _improved_plan(
             improve_time_limit,
             good_enough=good_enough,
             help_neighbours=help_neighbours,
+            max_slack=len(graph) <= PAPER_START_LIMIT,
         )
     stats = _partition_stats(
         graph,

@@ -133,14 +133,18 @@ def improve_plan(
     time_limit: float,
     good_enough: float = 0.0,
     help_neighbours: bool = True,
+    max_slack: bool = True,
 ) -> ImprovedPlan:
     """Best start among `partitions`, then local search (see the module docstring).
 
     `good_enough` (s): a makespan at which to stop searching (e.g. just above the lower bound).
     Without `help_neighbours` only policies that keep every robot to its region are used, so the
-    regions stay connected.
+    regions stay connected. Without `max_slack` the paper's policy is not tried (on a 10,000-tile
+    pyramid it ordered within 0.004% of critical path, at 0.1 s a try).
     """
     start_policies = ALL_POLICIES if help_neighbours else ALL_POLICIES[:2]
+    if not max_slack:
+        start_policies = tuple(entry for entry in start_policies if entry[1] is not Policy.MAX_SLACK)
     search_policies = SEARCH_POLICIES if help_neighbours else SEARCH_POLICIES[:1]
     deadline = time.perf_counter() + time_limit
     best = None
