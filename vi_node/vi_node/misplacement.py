@@ -646,7 +646,9 @@ def _summarise(
 class TileSurfaces(Protocol):
     """Closest points on one tile's surface: (closest points, normals there) for (N, 3) points."""
 
-    def closest_on_tile(self, points: Array, index: int) -> tuple[Array, Array]: ...
+    def closest_on_tile(
+        self, points: Array, index: int, camera_position: Array | None = None
+    ) -> tuple[Array, Array]: ...
 
 
 def _project(
@@ -660,13 +662,8 @@ def _project(
     """Closest points on tile `index` (within `reach`), by `surfaces` or the patch hierarchy."""
     if surfaces is None:
         return patches.project(points, reach, camera_position, only_tile=index)
-    closest, normal = surfaces.closest_on_tile(points, index)
+    closest, normal = surfaces.closest_on_tile(points, index, camera_position)  # faces it can see
     distance = np.sqrt(np.einsum("ij,ij->i", points - closest, points - closest))
-    # a camera cannot see a face turned away from it: those few points go through the patches
-    away = np.flatnonzero(np.einsum("ij,ij->i", normal, camera_position - closest) < 0)
-    if len(away):
-        again = patches.project(points[away], reach, camera_position, only_tile=index)
-        closest[away], normal[away], distance[away] = again.closest, again.normal, again.distance
     found = distance <= reach
     return Projection(
         closest, normal, np.where(found, index, -1), np.where(found, 0, -1), np.where(found, distance, np.inf)

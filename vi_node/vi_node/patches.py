@@ -51,6 +51,8 @@ class _Patch:
     corners_2d: Array  # (K, 2) counter-clockwise
     edge_normals: Array  # (K, 2) inward unit normals of the edges
     edge_offsets: Array  # (K,) inside when edge_normals . x >= edge_offsets
+    edges_2d: Array  # (K, 2) from each corner to the next
+    edge_squares: Array  # (K,) squared lengths of the edges
     low: Array
     high: Array
 
@@ -83,6 +85,8 @@ def _make_patch(tile: int, face: int, corners: Array, normal: Array) -> _Patch:
         corners_2d=flat,
         edge_normals=inward,
         edge_offsets=np.einsum("ij,ij->i", inward, flat),
+        edges_2d=edges,
+        edge_squares=np.einsum("ij,ij->i", edges, edges),
         low=corners.min(axis=0),
         high=corners.max(axis=0),
     )
@@ -194,8 +198,8 @@ class PlanarPatches:
         if outside.any():
             q = flat[outside][:, None, :]  # (m, 1, 2)
             a = patch.corners_2d[None, :, :]
-            edge = np.roll(patch.corners_2d, -1, axis=0)[None, :, :] - a
-            t = np.clip(np.sum((q - a) * edge, axis=2) / np.sum(edge * edge, axis=2), 0.0, 1.0)
+            edge = patch.edges_2d[None, :, :]
+            t = np.clip(np.sum((q - a) * edge, axis=2) / patch.edge_squares[None, :], 0.0, 1.0)
             on_edge = a + t[..., None] * edge  # (m, K, 2)
             gap = np.sum((q - on_edge) ** 2, axis=2)
             nearest = np.argmin(gap, axis=1)

@@ -33,6 +33,7 @@ Array = NDArray[np.float64]
 FLOOR = -1  # VirtualScan.tile value of pixels that see the floor
 NOTHING = -2  # ... and of pixels whose ray hits nothing (or is outside the sensor's range)
 NO_TILE = -3  # `blocked`: ignore no tile
+_NO_FACES = object()  # `closest_on_tile`: no face of the tile is turned towards the camera
 UNSEEN = -4  # SurfaceLayer.tile of the behind layer on tile pixels not looked behind (depth NaN)
 
 
@@ -121,7 +122,8 @@ class VirtualScene:
             self.triangle_normal = np.zeros((0, 3))
         self.has_tiles = bool(tiles)
         self._tiles = list(tiles)
-        self._tile_scenes: dict[int, object] = {}  # built on demand, for refitting single tiles
+        self._tile_scenes: dict[tuple[int, tuple[int, ...] | None], object] = {}  # built on demand, for
+        # refitting single tiles: per tile and faces turned towards the camera
 
     def _rays(self, origin: Array, directions: NDArray[np.float32]) -> object:
         rays = np.empty((*directions.shape[:-1], 6), dtype=np.float32)
@@ -252,25 +254,42 @@ class VirtualScene:
         normal[chosen[~structure]] = (0.0, 0.0, 1.0)
         return _Hits(depth, tile, normal)
 
-    def closest_on_tile(self, points: Array, index: int) -> tuple[Array, Array]:
-        """Closest points on tile `index` (of the scene's tiles) alone, and the normals there."""
-        scene = self._tile_scenes.get(index)
+    def closest_on_tile(
+        self, points: Array, index: int, camera_position: Array | None = None
+    ) -> tuple[Array, Array]:
+        """Closest points on tile `index` (of the scene's tiles) alone, and the normals there. With
+        `camera_position`, on the faces turned towards it only: a camera measures no point on the
+        others (none turned towards it: closest points at infinity)."""
+        tile = self._tiles[index]
+        faces = None
+        if camera_position is not None:
+            faces = tuple(np.flatnonzero(tile.face_normals @ camera_position - tile.face_offsets > 0).tolist())
+        scene = self._tile_scenes.get((index, faces))
         if scene is None:
-            o3d = import_open3d()
-            tile = self._tiles[index]
-            triangles, _ = tile.triangles
-            scene = o3d.t.geometry.RaycastingScene()
-            scene.add_triangles(
-                self._core.Tensor(tile.vertices.astype(np.float32)),
-                self._core.Tensor(triangles.astype(np.uint32)),
-            )
-            self._tile_scenes[index] = scene
+            scene = self._tile_scene(tile, faces)
+            self._tile_scenes[(index, faces)] = scene
+        if scene is _NO_FACES:
+            return np.full((len(points), 3), np.inf), np.zeros((len(points), 3))
         result = scene.compute_closest_points(  # type: ignore[attr-defined]
             self._core.Tensor.from_numpy(np.ascontiguousarray(points, dtype=np.float32))
         )
         return result["points"].numpy().astype(np.float64), result["primitive_normals"].numpy().astype(
             np.float64
         )
+
+    def _tile_scene(self, tile: PlacedTile, faces: tuple[int, ...] | None) -> object:
+        """A scene of `tile`'s triangles (on `faces` only, if given), for closest points."""
+        triangles, face_of = tile.triangles
+        if faces is not None:
+            triangles = triangles[np.isin(face_of, faces)]
+        if len(triangles) == 0:
+            return _NO_FACES
+        scene = import_open3d().t.geometry.RaycastingScene()
+        scene.add_triangles(
+            self._core.Tensor(tile.vertices.astype(np.float32)),
+            self._core.Tensor(triangles.astype(np.uint32)),
+        )
+        return scene
 
     def closest_points(self, points: Array) -> tuple[Array, Array, NDArray[np.int64]]:
         """Closest point on S_a, the normal there and the tile index, for every point."""
