@@ -54,15 +54,17 @@ class ClockLedger:
 
     def report(self, wall: float, simulated: float) -> str:
         """One line on the wall time since the last report (then a new report starts)."""
-        elapsed = max(wall - (wall if self._since is None else self._since), 1e-9)
+        since = wall if self._since is None else self._since
+        elapsed = max(wall - since, 1e-9)
         ran = simulated - self._simulated_since
         parts = [f"{100 * self._seconds.get(RUNNING, 0.0) / elapsed:.0f}% running"]
         for kind, label in KINDS.items():
-            mine = sorted((-s, h.name) for h, s in self._seconds.items() if isinstance(h, Holder) and h.kind == kind)
-            total = -sum(s for s, _ in mine)
+            shares = [(s, h.name) for h, s in self._seconds.items() if isinstance(h, Holder) and h.kind == kind]
+            shares.sort(key=lambda share: (-share[0], share[1]))  # the biggest first, ties by name
+            total = sum(s for s, _ in shares)
             if total <= 0.0:
                 continue
-            names = ", ".join(f"{name} {-100 * s / elapsed:.0f}%" for s, name in mine[:3] if name)
+            names = ", ".join(f"{name} {100 * s / elapsed:.0f}%" for s, name in shares[:3] if name)
             parts.append(f"{100 * total / elapsed:.0f}% held for {label}" + (f" ({names})" if names else ""))
         line = (f"simulated time ran {ran:.1f} s in the last {elapsed:.0f} s of wall time "
                 f"({ran / elapsed:.2f}x): " + "; ".join(parts))

@@ -141,7 +141,7 @@ class SimWorld(Node):
             if self.ledger.due(wall):
                 self.get_logger().info(self.ledger.report(wall, self.clock.now))
         self.last_tick = wall
-        for robot in self.hold.lapsed(time.monotonic(), self.clock.now):
+        for robot in self.hold.lapsed(wall, self.clock.now):
             self.get_logger().warn(f"{robot}'s scan held the clock for over {self.settings.scan_hold_limit:g} s "
                                    "of wall time: running on without it")
         lapsed = self.body_hold.lapsed(self.clock.now, time.monotonic()) if self.clock.running else []

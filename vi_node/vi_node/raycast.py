@@ -33,8 +33,8 @@ Array = NDArray[np.float64]
 FLOOR = -1  # VirtualScan.tile value of pixels that see the floor
 NOTHING = -2  # ... and of pixels whose ray hits nothing (or is outside the sensor's range)
 NO_TILE = -3  # `blocked`: ignore no tile
-_NO_FACES = object()  # `closest_on_tile`: no face of the tile is turned towards the camera
 UNSEEN = -4  # SurfaceLayer.tile of the behind layer on tile pixels not looked behind (depth NaN)
+_NO_FACES = object()  # `closest_on_tile`: no face of the tile is turned towards the camera
 
 
 @dataclass(frozen=True)
