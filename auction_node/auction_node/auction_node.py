@@ -60,6 +60,7 @@ from tiling_ros.parameters import declare_settings, setting
 from tiling_ros.spinning import run_node
 from tiling_ros.stamps import stamp_from_nanoseconds, stamp_from_seconds, stamp_to_seconds
 
+DUE_CHECK_PERIOD = 0.05  # s (node clock): deadlines are seconds long; the simulated /clock steps this often
 SENSING = {TileState.PRESENT: PRESENT, TileState.MISSING: MISSING}  # anything else: undetermined
 REASONS = {
     AuctionAnnouncement.REASON_MISSING: "missing",
@@ -158,8 +159,14 @@ class AuctionNode(Node):
         topics.ROBOT_STATUS.subscribe(self, self.on_status)
         self.replan_client = self.create_client(Replan, "/replan")
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(0.02, self.tick, clock=steady)
-        self.create_timer(float(settings.status_period), self.publish_status, clock=steady)
+        # deadlines, reopenings and graces are in node time: checked as that clock moves (in the
+        # simulation, as /clock moves, whatever the host's load), not on a fast wall-clock tick
+        # whose every wake-up costs the executor a pass over all its entities
+        self.create_timer(DUE_CHECK_PERIOD, self.check_due)
+        self.create_timer(float(settings.status_period), self.heartbeat, clock=steady)
+        # copies go out every resend_period of wall time, only while something waits for an answer
+        self.resend_timer = self.create_timer(resend_period, self.resend_unanswered, clock=steady)
+        self.resend_timer.cancel()
         self.get_logger().info("auction node ready")
 
     # --- helpers ------------------------------------------------------------------------------
@@ -202,6 +209,7 @@ class AuctionNode(Node):
         self.announce_pub.publish(msg)
         self.announcements[auction.auction_id] = msg
         self.repeater.sent(auction.auction_id, time.monotonic())
+        self.expect_answers()
         verbs = "rests on it and comes" if len(resting) == 1 else "rest on it and come"
         taken_off = f"; {', '.join(map(str, resting))} {verbs} off first" if resting else ""
         self.decide(
@@ -360,11 +368,26 @@ class AuctionNode(Node):
         self.status_pub.publish(status)
 
     # --- time-driven --------------------------------------------------------------------------
-    def tick(self) -> None:
+    def heartbeat(self) -> None:
+        """Robots silent for liveness_timeout are lost; then the auctioneer's own heartbeat."""
         for robot in self.liveness.newly_lost(time.monotonic()):
             self.robot_lost(robot)
-        self.close_auctions()
+        self.publish_status()
+
+    def resend_unanswered(self) -> None:
         self.repeat_unanswered(time.monotonic())
+        if not self.book.open_auctions and not self.delivery.pending:
+            self.resend_timer.cancel()
+
+    def expect_answers(self) -> None:
+        """An announcement or an award went out: copies follow until it is answered."""
+        if self.resend_timer.is_canceled():
+            self.resend_timer.reset()
+
+    def check_due(self) -> None:
+        """What the node clock has made due: auctions at their deadline, tiles in lost hands past
+        their grace, unconfirmed reports past their wait, auctions to reopen."""
+        self.close_auctions()
         self.give_up_lost_hands()
         for support, at, robot, tile_id in self.unconfirmed.due(self.now()):
             self.robot_found_missing(support, at, robot, tile_id, waited=True)
@@ -401,6 +424,7 @@ class AuctionNode(Node):
         self.decide(award.decision, error=not award.winner)
         if award.winner:
             self.delivery.sent(award, reason, detected, time.monotonic())
+            self.expect_answers()
         else:
             self.reopen.append((self.now() + self.reopen_delay, award.tile_id, reason))
 

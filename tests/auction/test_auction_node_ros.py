@@ -1,7 +1,9 @@
 """auction_node as a real ROS 2 process, when only scans decide (robots_find_missing false): a
 support a robot found absent waits for a scan to confirm it, and is acted on after
 unconfirmed_report_timeout if none does, so the robot that found it does not wait forever. A tile
-called missing and then found lying wrong is repaired once, by one robot."""
+called missing and then found lying wrong is repaired once, by one robot. Copies of an
+announcement go out until every robot has bid; under simulated time an auction closes when the
+clock passes its deadline, however much wall time goes by."""
 
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers.isolated_domains import fresh_domain
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from tiling_assembly.messages import structure_to_msg
@@ -32,6 +35,7 @@ from tiling_assembly_msgs.msg import (
     TileStateArray,
 )
 from tiling_ros import team_topics as topics
+from tiling_ros.stamps import stamp_from_seconds, stamp_to_seconds
 
 pytestmark = pytest.mark.ros
 
@@ -117,13 +121,15 @@ class Team:
         self.node.destroy_node()
 
 
-@pytest.fixture
-def team() -> Iterator[tuple[Team, Any]]:
+def auction_node_with(*parameters: str) -> Iterator[tuple[Team, Any]]:
+    """auction_node started with `parameters` (besides the test's usual ones), and a team."""
     structure = load_structure(REPO / "config" / "structures" / "paper_14.yaml")
     command = [ros2_command(), "run", "auction_node", "auction_node", "--ros-args",
                "--params-file", str(REPO / "config" / "auction_node.yaml"),
                "-p", "robots_find_missing:=false", "-p", f"unconfirmed_report_timeout:={TIMEOUT}",
                "-p", "confirmations:=1", "-p", "confirmation_view_change:=0.0"]
+    for parameter in parameters:
+        command += ["-p", parameter]
     team = Team()
     process = subprocess.Popen(command, cwd=REPO, env=team.domain.environ(), stdout=subprocess.PIPE,
                                stderr=subprocess.STDOUT, text=True)
@@ -136,6 +142,16 @@ def team() -> Iterator[tuple[Team, Any]]:
     finally:
         team.close()
         stop_node_process(process)  # checks it stopped cleanly, without a traceback
+
+
+@pytest.fixture
+def team() -> Iterator[tuple[Team, Any]]:
+    yield from auction_node_with()
+
+
+@pytest.fixture
+def team_on_simulated_time() -> Iterator[tuple[Team, Any]]:
+    yield from auction_node_with("use_sim_time:=true")
 
 
 def test_a_report_no_scan_confirms_is_acted_on_after_the_timeout(team: tuple[Team, Any]) -> None:
@@ -175,17 +191,22 @@ def test_a_scan_that_confirms_the_report_is_acted_on_once(team: tuple[Team, Any]
     assert 20 <= team.copies(announcement.auction_id) <= 50  # 2 s window, resend_period 0.05 s
 
 
-def called_missing_then_found_in_the_way(team: Team, structure: Any) -> tuple[int, AuctionAnnouncement]:
-    """A placed tile a scan calls missing (its re-placement auctioned), then robot1 finds it lying
-    wrong in the way of another tile; returns the tile and its re-placement announcement."""
+def called_missing(team: Team, structure: Any) -> AuctionAnnouncement:
+    """A placed tile a scan calls missing: its re-placement's announcement."""
     tile = next(t for t in structure.tile_ids if structure.supports[t])
     team.report(tile, PlacementReport.OUTCOME_PLACED)
     team.spin_for(0.3)
     team.scan(tile, camera_x=1.0)
     team.spin_until(lambda: team.announced(tile), 5.0, "re-placement auction")
-    (_, replacement), = team.announced(tile)
+    return team.announced(tile)[0][1]
+
+
+def called_missing_then_found_in_the_way(team: Team, structure: Any) -> tuple[int, AuctionAnnouncement]:
+    """A placed tile a scan calls missing (its re-placement auctioned), then robot1 finds it lying
+    wrong in the way of another tile; returns the tile and its re-placement announcement."""
+    replacement = called_missing(team, structure)
     assert replacement.reason == AuctionAnnouncement.REASON_MISSING
-    return tile, replacement
+    return replacement.tile_id, replacement
 
 
 def found_in_the_way(team: Team, structure: Any, tile: int) -> None:
@@ -224,3 +245,37 @@ def test_a_tile_found_lying_wrong_after_its_replacement_was_won_is_repaired_by_t
     assert repair.bidders == ["robot2"], "another robot could win the repair while robot2 carries the tile there"
     team.spin_until(lambda: any("robot2, which is to place it again, does it" in d for d in team.decisions), 2.0,
                     "the decision line")
+
+
+
+def test_copies_of_an_announcement_stop_once_every_robot_has_bid(team: tuple[Team, Any]) -> None:
+    team, structure = team
+    auction = called_missing(team, structure).auction_id
+    team.spin_for(0.3)
+    assert team.copies(auction) >= 3, "robots that have not bid are not invited again"
+    team.bid(auction, "robot1", 2.0)
+    team.bid(auction, "robot2", 1.0)
+    team.spin_until(lambda: any(a.auction_id == auction for a in team.awards), 2.0, "award")
+    team.spin_for(0.2)
+    copies = team.copies(auction)
+    team.spin_for(1.0)
+    assert team.copies(auction) == copies, "copies went on after every robot had bid"
+
+
+def test_under_simulated_time_an_auction_closes_when_the_clock_passes_its_deadline_whatever_the_wall_time(
+        team_on_simulated_time: tuple[Team, Any]) -> None:
+    """robot2 never bids: the auction closes at its deadline (bid_window 2 s of node time). While the
+    simulated clock stands still no wall time closes it; once the clock passes it, it closes."""
+    team, structure = team_on_simulated_time
+    clock = team.node.create_publisher(Clock, "/clock", 10)
+    now = [100.0]
+    team.node.create_timer(0.05, lambda: clock.publish(Clock(clock=stamp_from_seconds(now[0]))))
+    team.spin_for(0.5)
+    auction = called_missing(team, structure)
+    assert abs(stamp_to_seconds(auction.deadline) - 102.0) < 0.2, "the deadline is not in simulated time"
+    team.bid(auction.auction_id, "robot1", 2.0)
+    team.spin_for(3.0)  # more wall time than the bid window
+    assert team.awards == [], "the auction closed on wall time while the simulated clock stood still"
+    now[0] = 102.5
+    team.spin_until(lambda: team.awards, 2.0, "award once the clock passed the deadline")
+    assert team.awards[0].winner == "robot1"
