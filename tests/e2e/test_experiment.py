@@ -234,6 +234,23 @@ def test_ctrl_c_stops_the_run_and_leaves_no_process(tmp_path: Path) -> None:
     assert isinstance(json.loads((tmp_path / "logs" / "trial_00" / "events.json").read_text()), list)
 
 
+def test_ctrl_c_in_a_later_trial_keeps_the_report_of_the_trials_finished_before(tmp_path: Path) -> None:
+    def baseline_finished() -> None:
+        deadline = time.monotonic() + 180
+        while not (tmp_path / "logs" / "trial_01").exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert (tmp_path / "logs" / "trial_01").exists(), "trial 1 did not start"
+
+    _, stderr = interrupt_a_run(tmp_path, "--real-time-factor", "30", nodes=5, running=3.0,
+                                check_running=baseline_finished)
+    assert "the 1 trial(s) finished before are in" in stderr
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert data["interrupted"] is True
+    (baseline,) = data["trials"]
+    assert baseline["trial"] == 0 and baseline["complete"]
+    assert "Interrupted: only the 1 trial(s) finished before are reported" in (tmp_path / "report.md").read_text()
+
+
 def test_runner_failure_leaves_no_process(experiment) -> None:  # type: ignore[no-untyped-def]
     before = set(_processes_of_run())
     floating = REPO / "tests/data/structures/invalid/floating_tile.yaml"

@@ -123,6 +123,7 @@ class Experiment:
         self.config = config
         self.network = network or TeamNetwork(config.network, config.robot_names, tuple(config.vi_robot_names))
         self.structure = load_structure(config.structure_file)
+        self.finished: ExperimentResult | None = None  # the trials run so far, once `run` starts
         model = TimeModel()
         self.estimated_makespan = model.workload(self.structure, self.structure.tile_ids) / config.robots
         self.sim_limit = 6.0 * self.estimated_makespan + 300.0
@@ -323,6 +324,7 @@ class Experiment:
         xy = self.start_positions()
         result = ExperimentResult(c, self.structure, robot_starts={
             robot: (xy[2 * k], xy[2 * k + 1]) for k, robot in enumerate(c.robot_names)})
+        self.finished = result  # what an interruption keeps
         counts = removals_per_trial(c.removals, c.trials, c.seed)
         misplaced = removals_per_trial(c.misplacements, c.trials, c.seed + 1)
         wrong = removals_per_trial(c.wrong_tiles, c.trials, c.seed + 2)
@@ -500,11 +502,28 @@ def run_experiment(config: ExperimentConfig, network: TeamNetwork, domain: int) 
               "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ros2 topic echo /auction/decisions", flush=True)
     elif not config.quiet:
         print(network.describe(), flush=True)
-    result = experiment.run()
+    try:
+        result = experiment.run()
+    except (KeyboardInterrupt, RuntimeError):
+        if signalled.is_set():
+            _keep_finished_trials(experiment)
+        raise
     print(report.summary_text(result), flush=True)
     path = report.write(result)
     print(f"Report: {path}")
     return 0 if all(r.complete() for r in result.records) else 1
+
+
+def _keep_finished_trials(experiment: Experiment) -> None:
+    """An interrupted run's report of the trials it finished (an hour of trials is not lost to a
+    Ctrl-C in the last one)."""
+    finished = experiment.finished
+    if finished is None or not finished.records:
+        return
+    finished.interrupted = True
+    path = report.write(finished)
+    print(f"\ninterrupted: the {len(finished.records)} trial(s) finished before are in {path}", file=sys.stderr,
+          flush=True)
 
 
 def _interrupted() -> int:

@@ -59,6 +59,7 @@ class ExperimentResult:
     records: list[TrialRecord] = field(default_factory=list)
     link_counters: dict[str, dict[str, int]] = field(default_factory=dict)  # robot -> its link's counters
     robot_starts: dict[str, tuple[float, float]] = field(default_factory=dict)  # where each robot stood at the start
+    interrupted: bool = False  # stopped by Ctrl-C or SIGTERM: `records` holds the trials finished before
 
     def fault_trials(self) -> list[TrialRecord]:
         return [r for r in self.records if r.trial > 0]

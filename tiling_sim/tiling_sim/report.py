@@ -274,6 +274,8 @@ def summary_text(result: ExperimentResult) -> str:
     lines += ["Detection statistics over the trials with faults", *detection_table(result), ""]
     if any(e.kind == "misplaced" for r in result.fault_trials() for e in r.events):
         lines += ["Placements that landed wrong, and their repair", *misplacement_table(result), ""]
+    if result.interrupted:
+        lines.append(f"Interrupted: only the {len(result.records)} trial(s) finished before are reported")
     finished = [r for r in result.fault_trials() if r.complete()]
     verdict = "yes" if len(finished) == len(result.fault_trials()) else "NO"
     total = len(result.fault_trials())
@@ -441,4 +443,4 @@ def results_json(result: ExperimentResult) -> dict[str, object]:
             "lower_bound": None if first is None else first.lower_bound,
             "network": {**result.config.network.as_dict(), "real_time_factor": result.config.real_time_factor,
                         "link_counters": result.link_counters},
-            "trials": trials}
+            "interrupted": result.interrupted, "trials": trials}
