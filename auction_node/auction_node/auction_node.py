@@ -92,7 +92,8 @@ class AuctionSettings:
     lost_tile_grace: float = setting(
         60.0, "s (node clock) the tile in a lost robot's hands stays its own before it is auctioned (out of "
         "reach, the robot may be placing it).")
-    status_period: float = setting(0.2, "s of wall-clock time between two /auction/status heartbeats.")
+    status_period: float = setting(
+        0.2, "s of wall-clock time between two /auction/status heartbeats; robots' liveness is checked as often.")
     reopen_delay: float = setting(5.0, "s (node clock) before an auction nobody bid in is reopened.")
     lost_robot_policy: str = setting("replan", "'replan' (planner's /replan service) or 'auction' per tile.")
     robots_find_missing: bool = setting(
