@@ -144,7 +144,7 @@ class SimWorld(Node):
         for robot in self.hold.lapsed(wall, self.clock.now):
             self.get_logger().warn(f"{robot}'s scan held the clock for over {self.settings.scan_hold_limit:g} s "
                                    "of wall time: running on without it")
-        lapsed = self.body_hold.lapsed(self.clock.now, time.monotonic()) if self.clock.running else []
+        lapsed = self.body_hold.lapsed(self.clock.now, wall) if self.clock.running else []
         for robot in lapsed:
             self.get_logger().warn(f"{robot}'s body held the clock for over {self.settings.body_hold_limit:g} s of "
                                    "wall time at the end of a phase: running on without it")
