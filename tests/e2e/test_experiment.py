@@ -236,14 +236,14 @@ def test_ctrl_c_stops_the_run_and_leaves_no_process(tmp_path: Path) -> None:
 
 def test_ctrl_c_in_a_later_trial_keeps_the_report_of_the_trials_finished_before(tmp_path: Path) -> None:
     def baseline_finished() -> None:
-        deadline = time.monotonic() + 180
+        deadline = time.monotonic() + 400  # a busy host slows the baseline, it does not stop it
         while not (tmp_path / "logs" / "trial_01").exists() and time.monotonic() < deadline:
             time.sleep(0.2)
         assert (tmp_path / "logs" / "trial_01").exists(), "trial 1 did not start"
 
     _, stderr = interrupt_a_run(tmp_path, "--real-time-factor", "30", nodes=5, running=3.0,
                                 check_running=baseline_finished)
-    assert "the 1 trial(s) finished before are in" in stderr
+    assert stderr.count("interrupted:") == 1 and "the 1 trial(s) finished before are in" in stderr
     data = json.loads((tmp_path / "results.json").read_text())
     assert data["interrupted"] is True
     (baseline,) = data["trials"]

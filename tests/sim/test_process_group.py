@@ -66,6 +66,7 @@ def test_kill_stops_one_process_at_once(tmp_path: Path) -> None:
         group.start("b", ["sleep", "60"])
         group.kill("a")
         assert group.dead() == ["a"]
+        assert group.how_it_ended("a") == "was killed by SIGKILL" and group.how_it_ended("b") == "is still running"
         sessions = group.pids()
     assert _wait_gone(sessions) == []
 
@@ -98,3 +99,13 @@ def test_a_hung_python_process_leaves_its_stacks_in_its_log(tmp_path: Path) -> N
     assert group.stop(grace=0.3, term_grace=2.0) == {"hung": -signal.SIGABRT}
     log = (tmp_path / "hung.log").read_text()
     assert "Fatal Python error: Aborted" in log and "stuck_in_shutdown" in log, log
+
+
+def test_how_a_process_ended_is_told_by_its_exit_code_or_signal() -> None:
+    with ProcessGroup() as group:
+        group.start("fails", ["bash", "-c", "exit 3"])
+        group.start("crashes", [sys.executable, "-c", "import os, signal; os.kill(os.getpid(), signal.SIGSEGV)"])
+        for process in group.processes.values():
+            process.popen.wait(timeout=10)
+        assert group.how_it_ended("fails") == "exited with code 3"
+        assert group.how_it_ended("crashes") == "was killed by SIGSEGV"

@@ -287,7 +287,8 @@ class Experiment:
             wall = time.monotonic() - wall_start
             dead = [n for n in group.dead() if n != self.config.kill_robot]
             if dead:
-                record.failure = f"{', '.join(dead)} exited (see {logs})"
+                ended = ", ".join(f"{name} {group.how_it_ended(name)}" for name in dead)
+                record.failure = f"{ended} (see {logs})"
                 return
             if started_wall is None:
                 waiting = observer.ready_to_start(self.expected_nodes(), self.sensor_readers())
@@ -505,29 +506,28 @@ def run_experiment(config: ExperimentConfig, network: TeamNetwork, domain: int) 
     try:
         result = experiment.run()
     except (KeyboardInterrupt, RuntimeError):
-        if signalled.is_set():
-            _keep_finished_trials(experiment)
-        raise
+        if not signalled.is_set():
+            raise
+        return _interrupted(kept=_keep_finished_trials(experiment))
     print(report.summary_text(result), flush=True)
     path = report.write(result)
     print(f"Report: {path}")
     return 0 if all(r.complete() for r in result.records) else 1
 
 
-def _keep_finished_trials(experiment: Experiment) -> None:
-    """An interrupted run's report of the trials it finished (an hour of trials is not lost to a
-    Ctrl-C in the last one)."""
+def _keep_finished_trials(experiment: Experiment) -> str:
+    """Writes an interrupted run's report of the trials it finished (an hour of trials is not lost
+    to a Ctrl-C in the last one); says where it is, or "" if no trial had finished."""
     finished = experiment.finished
     if finished is None or not finished.records:
-        return
+        return ""
     finished.interrupted = True
     path = report.write(finished)
-    print(f"\ninterrupted: the {len(finished.records)} trial(s) finished before are in {path}", file=sys.stderr,
-          flush=True)
+    return f"the {len(finished.records)} trial(s) finished before are in {path}"
 
 
-def _interrupted() -> int:
-    print("\ninterrupted: every node was stopped", file=sys.stderr)
+def _interrupted(kept: str = "") -> int:
+    print(f"\ninterrupted: every node was stopped{'; ' + kept if kept else ''}", file=sys.stderr, flush=True)
     return 130
 
 

@@ -86,6 +86,19 @@ class ProcessGroup:
         """Names of processes that exited on their own."""
         return [name for name, p in self.processes.items() if not p.alive()]
 
+    def how_it_ended(self, name: str) -> str:
+        """How process `name` ended, for a one-line diagnostic: "exited with code N" or "was killed by
+        SIGNAME" (a crash, or a signal from outside the run)."""
+        code = self.processes[name].popen.returncode
+        if code is None:
+            return "is still running"
+        if code < 0:
+            try:
+                return f"was killed by {signal.Signals(-code).name}"
+            except ValueError:
+                return f"was killed by signal {-code}"
+        return f"exited with code {code}"
+
     def kill(self, name: str) -> None:
         """Kill one process at once, as a crash would (SIGKILL to its whole session)."""
         process = self.processes[name]
