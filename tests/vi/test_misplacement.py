@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 
 import numpy as np
 import pytest
-from vi_helpers import states_from, structure
+from vi_helpers import SCANS, states_from, structure
 
 from tiling_assembly.contacts import separation
 from tiling_assembly.geometry import PlacedTile, prism_shape, turn_symmetry
@@ -453,3 +454,23 @@ def test_a_large_tile_turned_beside_few_others_is_flagged_though_it_pulls_every_
     assert states[8] in (TileState.PRESENT, TileState.OCCLUDED) and states[7] is not TileState.MISPLACED
     assert TileState.MISSING not in states.values()
     assert any("aligned without tile 3" in note for note in result.notes)
+
+
+def test_a_tile_that_slid_on_another_does_not_make_the_one_below_look_moved() -> None:
+    """A tile slips in the plane, it does not rise: the points of triangle 13, which slid on long
+    rectangle 11, lie above the rectangle's top and are not the rectangle's. Taken for its own, they
+    made it fit a turn of 23 degrees in this recorded scan, and the team would have taken it off."""
+    folder = SCANS / "triangle_slid_on_rectangle"
+    recorded = json.loads((folder / "scan.json").read_text())
+    steps = np.load(folder / "cloud.npz")["half_millimetres"]
+    cloud = np.where(steps == -32768, np.nan, steps / 2000.0).astype(np.float32)
+    settings = InspectionSettings().with_values({"camera_xyz": recorded["camera_xyz"],
+                                                 "camera_rpy": recorded["camera_rpy"]})
+    pipeline = InspectionPipeline(structure(), None, settings)
+    pipeline.set_expected(tuple(recorded["expected"]))
+    result = pipeline.inspect(cloud, OverheadPose(*recorded["overhead"]),
+                              [OverheadPose(*robot) for robot in recorded["robots"]])
+    assert result.ok, result.reason
+    states = result.by_id()
+    assert states[recorded["moved"]].state == TileState.MISPLACED
+    assert states[recorded["in_place"]].state == TileState.PRESENT, states[recorded["in_place"]]

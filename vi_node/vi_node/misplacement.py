@@ -35,7 +35,8 @@ Array = NDArray[np.float64]
 class MisplacementSettings:
     shift: float = 0.015  # m, flag when the fitted offset of the tile exceeds this ...
     turn: float = 0.175  # rad (10 deg), ... or its fitted turn exceeds this
-    reach: float = 0.04  # m, points this close to a tile (and nearest to it) are its points
+    reach: float = 0.04  # m, points this close to a tile (and nearest to it) are its points ...
+    height_slack: float = 0.005  # m, ... unless they lie this much above its top or below its bottom
     min_points: int = 40  # fewer points: the tile cannot be judged
     min_off_share: float = 0.15  # refit only when this share of its points is off its faces
     improvement: float = 0.85  # the refit must bring the median distance below this share of it before ...
@@ -292,9 +293,24 @@ def _owners(scan: ScanPoints, context: PlacementContext, settings: MisplacementS
     facing = np.einsum("ij,ij->i", scan.normal, context.camera_position - scan.closest) > 0
     own = (distance <= settings.reach) & (facing | (distance > 0.005))
     count = len(context.patches)
+    # a tile slips in the plane, it does not rise or sink: a point above its top or below its bottom
+    # is another tile's (a triangle that slid on a long rectangle, its top 2 cm above the rectangle's,
+    # made the rectangle fit a 17-29 degree turn, and the rectangle was taken off with it)
+    own &= _in_height_band(scan.points, scan.nearest_tile, _height_bands(context.tiles), settings.height_slack)
     owner = np.where(own, scan.nearest_tile, count)
     order = np.argsort(owner, kind="stable")
     return _Owners(owner, distance, order, np.searchsorted(owner[order], np.arange(count + 1)))
+
+
+def _height_bands(tiles: Sequence[PlacedTile]) -> Array:
+    """(tiles, 2): the lowest and highest z of every tile."""
+    return np.array([(t.vertices[:, 2].min(), t.vertices[:, 2].max()) for t in tiles]).reshape(-1, 2)
+
+
+def _in_height_band(points: Array, tiles: NDArray[np.int64], bands: Array, slack: float) -> NDArray[np.bool_]:
+    """Whether each point lies within `slack` of the height band of its tile (`tiles`: indices)."""
+    band = bands[np.clip(tiles, 0, len(bands) - 1)]
+    return (points[:, 2] >= band[:, 0] - slack) & (points[:, 2] <= band[:, 1] + slack)
 
 
 @dataclass(frozen=True)
@@ -549,6 +565,9 @@ def _fit_tile(
     for _ in range(3):  # a tile that moved far takes a few rounds to collect all of its points
         reach = settings.reach + float(np.hypot(*shift))
         low, high = patches.tile_low[index] - reach, patches.tile_high[index] + reach
+        # across the plane only: the tile's own height band (see `_owners`)
+        low[2] = patches.tile_low[index][2] - settings.height_slack
+        high[2] = patches.tile_high[index][2] + settings.height_slack
         around = np.flatnonzero(np.all((points >= low) & (points <= high), axis=1) & ~claimed)
         projection = _project(
             patches,
