@@ -296,21 +296,18 @@ def _owners(scan: ScanPoints, context: PlacementContext, settings: MisplacementS
     # a tile slips in the plane, it does not rise or sink: a point above its top or below its bottom
     # is another tile's (a triangle that slid on a long rectangle, its top 2 cm above the rectangle's,
     # made the rectangle fit a 17-29 degree turn, and the rectangle was taken off with it)
-    own &= _in_height_band(scan.points, scan.nearest_tile, _height_bands(context.tiles), settings.height_slack)
+    own &= _in_height_band(scan.points, scan.nearest_tile, context.patches, settings.height_slack)
     owner = np.where(own, scan.nearest_tile, count)
     order = np.argsort(owner, kind="stable")
     return _Owners(owner, distance, order, np.searchsorted(owner[order], np.arange(count + 1)))
 
 
-def _height_bands(tiles: Sequence[PlacedTile]) -> Array:
-    """(tiles, 2): the lowest and highest z of every tile."""
-    return np.array([(t.vertices[:, 2].min(), t.vertices[:, 2].max()) for t in tiles]).reshape(-1, 2)
-
-
-def _in_height_band(points: Array, tiles: NDArray[np.int64], bands: Array, slack: float) -> NDArray[np.bool_]:
-    """Whether each point lies within `slack` of the height band of its tile (`tiles`: indices)."""
-    band = bands[np.clip(tiles, 0, len(bands) - 1)]
-    return (points[:, 2] >= band[:, 0] - slack) & (points[:, 2] <= band[:, 1] + slack)
+def _in_height_band(points: Array, tiles: NDArray[np.int64], patches: PlanarPatches,
+                    slack: float) -> NDArray[np.bool_]:
+    """Whether each point lies within `slack` of the heights of its tile (`tiles`: indices)."""
+    tile = np.clip(tiles, 0, len(patches) - 1)
+    z = points[:, 2]
+    return (z >= patches.tile_low[tile, 2] - slack) & (z <= patches.tile_high[tile, 2] + slack)
 
 
 @dataclass(frozen=True)
