@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from tiling_assembly.contacts import separation
 from tiling_assembly.geometry import PlacedTile, rotation_from_rpy, turn_symmetry
-from tiling_assembly.polygons import convex_hull_2d
+from tiling_assembly.polygons import convex_hull_2d, counter_clockwise
 from tiling_assembly.structure import Structure
 from tiling_sim.faults import SHIFT_RANGE, TURN_RANGE, mistaken_type
 from tiling_sim.kinect import ClutterBox, KinectScene, camera_pose
@@ -116,6 +116,11 @@ class Scene:
         return KinectScene(tiles, (*self.clutter, *self.robots))
 
     @property
+    def unreported(self) -> tuple[ClutterBox, ...]:
+        """The boxes on the floor no overhead camera reports (the VI robot's laser sees them)."""
+        return tuple(item for item in self.clutter if isinstance(item, ClutterBox))
+
+    @property
     def centre(self) -> Array:
         low, high = self.structure.subset(self.expected).bounds
         return 0.5 * (low + high)
@@ -165,6 +170,36 @@ def remove_tiles(
             break
         gone.append(int(rng.choice(options)))
     return tuple(sorted(gone))
+
+
+def outline_moved(planned: PlacedTile, placed: PlacedTile) -> float:
+    """How far (m) the footprint of `placed` lies from that of `planned`, at worst, either way: what
+    a camera looking down has to resolve to tell the two apart. A turn of a symmetric tile moves
+    little (an octagon turned 22 degrees: 4 mm), a shift moves every corner by the shift."""
+    ours, theirs = _footprints(planned), _footprints(placed)
+    return max(
+        max(_distance_to_pieces(corner, ours) for piece in theirs for corner in piece),
+        max(_distance_to_pieces(corner, theirs) for piece in ours for corner in piece),
+    )
+
+
+def _footprints(tile: PlacedTile) -> list[Array]:
+    """The tile's convex pieces seen from above, counter-clockwise."""
+    return [counter_clockwise(convex_hull_2d(piece[:, :2])) for piece in tile.pieces]
+
+
+def _distance_to_pieces(point: Array, pieces: list[Array]) -> float:
+    return min(_distance_to_convex(point, piece) for piece in pieces)
+
+
+def _distance_to_convex(point: Array, polygon: Array) -> float:
+    """Distance from `point` to the counter-clockwise convex `polygon` (0 inside)."""
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    to_point = point - polygon
+    if np.all(edges[:, 0] * to_point[:, 1] - edges[:, 1] * to_point[:, 0] >= -1e-12):
+        return 0.0
+    along = np.clip(np.einsum("ij,ij->i", to_point, edges) / np.einsum("ij,ij->i", edges, edges), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(to_point - along[:, None] * edges, axis=1)))
 
 
 def misplace_tile(
@@ -268,14 +303,17 @@ def view_from(
     rng: np.random.Generator,
     settings: ViewSettings = DEFAULT_VIEW,
     robots: tuple[ClutterBox, ...] = (),
+    obstacles: tuple[ClutterBox, ...] = (),
 ) -> View:
     """The VI robot at `distance` from `centre` on `bearing`, facing it, with random errors; the
     overhead cameras also report the other `robots`, with errors of the same kind. The VI robot does
-    not stand on another robot: it backs off along the bearing until it is clear of them."""
+    not stand on another robot, nor on the `obstacles` no overhead camera reports (a box on the
+    floor: its laser sees it): it backs off along the bearing until it is clear of them."""
+    solid = (*robots, *obstacles)
     for _ in range(100):
         x = centre[0] + distance * math.cos(bearing)
         y = centre[1] + distance * math.sin(bearing)
-        if all(_clear_of(r, _outline(_square((x, y), VI_BASE_RADIUS)), VI_CLEARANCE) for r in robots):
+        if all(_clear_of(r, _outline(_square((x, y), VI_BASE_RADIUS)), VI_CLEARANCE) for r in solid):
             break
         distance += 0.05
     yaw = bearing + math.pi + rng.uniform(-settings.aim_error, settings.aim_error)
@@ -304,9 +342,11 @@ def _overhead(truth: tuple[float, float, float], rng: np.random.Generator, setti
 
 
 def random_view(
-    centre: Array, rng: np.random.Generator, settings: ViewSettings = DEFAULT_VIEW, robots: tuple[ClutterBox, ...] = ()
+    centre: Array, rng: np.random.Generator, settings: ViewSettings = DEFAULT_VIEW, robots: tuple[ClutterBox, ...] = (),
+    obstacles: tuple[ClutterBox, ...] = (),
 ) -> View:
-    return view_from(centre, rng.uniform(0, 2 * math.pi), rng.uniform(*settings.distance), rng, settings, robots)
+    bearing, distance = rng.uniform(0, 2 * math.pi), rng.uniform(*settings.distance)
+    return view_from(centre, bearing, distance, rng, settings, robots, obstacles)
 
 
 def ring_of_views(
@@ -316,11 +356,13 @@ def ring_of_views(
     distance: float = 1.1,
     settings: ViewSettings = DEFAULT_VIEW,
     robots: tuple[ClutterBox, ...] = (),
+    obstacles: tuple[ClutterBox, ...] = (),
 ) -> list[View]:
     """Candidate viewpoints evenly around the structure (for next-viewpoint choice)."""
     start = rng.uniform(0, 2 * math.pi)
     return [
-        view_from(centre, start + 2 * math.pi * k / count, distance, rng, settings, robots) for k in range(count)
+        view_from(centre, start + 2 * math.pi * k / count, distance, rng, settings, robots, obstacles)
+        for k in range(count)
     ]
 
 
