@@ -115,3 +115,20 @@ def test_same_seed_same_cloud_and_other_resolutions() -> None:
     small = KinectSimulator(KINECT_V1_DEPTH.scaled(320, 240), seed=5).scan(scene, pose)
     assert small.shape == (240, 320, 3) and small.dtype == np.float32
     assert abs(np.nanmedian(small[..., 2]) - np.nanmedian(a[..., 2])) < 0.05
+
+
+def test_pixels_showing_a_tile_counts_what_is_in_range_and_in_front_and_draws_no_random_numbers() -> None:
+    tile = structure("paper_14").tiles[1]
+    at = tile.vertices.mean(axis=0)
+    simulator = KinectSimulator(seed=5)
+    state = simulator.rng.bit_generator.state
+
+    def looking_from(distance: float) -> np.ndarray:
+        return camera_pose(at[0] - distance, at[1], 0.0, (0.0, 0.0, at[2] + 0.3), (0.0, math.atan2(0.3, distance), 0.0))
+
+    seen = simulator.pixels_showing(KinectScene([tile]), looking_from(1.0), tile.tile_id)
+    assert seen > 400
+    assert simulator.pixels_showing(KinectScene([tile]), looking_from(0.3), tile.tile_id) == 0  # nearer than 0.5 m
+    in_front = ClutterBox((at[0] - 0.5, at[1], 0.5), (0.1, 1.0, 1.0))
+    assert simulator.pixels_showing(KinectScene([tile], [in_front]), looking_from(1.0), tile.tile_id) == 0
+    assert simulator.rng.bit_generator.state == state

@@ -271,6 +271,15 @@ class KinectSimulator:
         """A simulator with some noise constants changed (same intrinsics, fresh random stream)."""
         return KinectSimulator(self.intrinsics, replace(self.noise, **changes), int(self.rng.integers(2**31)))
 
+    def pixels_showing(self, scene: KinectScene, pose: Array, label: int) -> int:
+        """Pixels of a frame from `pose` on which `label` (a tile id) is the first thing hit, within
+        range and short of the incidence where returns give out: what a scan could show of it at
+        best (no noise, no projector shadow, no random draws: the scans' random stream is untouched)."""
+        directions = self._rays @ np.asarray(pose)[:3, :3].T
+        depth, labels, normals = scene.cast(np.asarray(pose)[:3, 3], directions)
+        shown = (labels == label) & (depth >= self.noise.min_range) & (depth <= self.noise.max_range)
+        return int(np.count_nonzero(shown & (self._incidence(directions, normals) < self.noise.grazing_end)))
+
     def scan(self, scene: KinectScene, pose: Array) -> NDArray[np.float32]:
         """One depth frame of `scene` from `pose`: (H, W, 3) float32, NaN where there is no return."""
         return self.scan_labelled(scene, pose)[0]

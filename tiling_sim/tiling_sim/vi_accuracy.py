@@ -65,6 +65,7 @@ from vi_node.scan_result import ScanResult
 from vi_node.viewpoint import next_viewpoint
 
 GRAZING_BAND = math.radians(10.0)  # returns fade out over this much incidence past the onset
+IN_SIGHT_PIXELS = 40  # returns a view must get of a removed tile, were it there, for the tile to be in its sight
 FINE_OUTLINE = 0.01  # m: a misplacement moving the tile's outline less than this is reported apart ...
 FINE_LABEL = ", outline < 1 cm"  # ... under its kind with this added
 
@@ -78,6 +79,8 @@ class Tally:
     present: int = 0
     present_called_missing: int = 0
     present_called_misplaced: int = 0
+    in_sight: int = 0  # fused: removed tiles one of the views taken would show, were they there ...
+    in_sight_detected: int = 0  # ... and of those, the ones detected
 
     def add(self, other: Tally) -> None:
         for name in vars(self):
@@ -191,16 +194,19 @@ def alignment_line(report: ModeReport) -> str:
 def summary_table(single: dict[tuple[str, str], ModeReport], fused: dict[tuple[str, str], ModeReport]) -> str:
     """One line per condition and mode: the figures the targets are about."""
     lines = [
-        "summary (removed tiles detected; removed tiles called present; present tiles called missing):",
+        "summary (removed tiles detected; removed tiles called present; present tiles called missing;",
+        f"  'in sight': removed tiles one of the fused views would show with {IN_SIGHT_PIXELS}+ returns, were they "
+        "there):",
         f"  {'condition':12s}{'mode':9s}{'removed':>8s}  {'detected, 1 view':>18s}  {'detected, fused':>18s}  "
-        f"{'called present':>15s}  {'present called missing':>23s}  {'aligned':>9s}",
+        f"{'of those in sight':>18s}  {'called present':>15s}  {'present called missing':>23s}  {'aligned':>9s}",
     ]
     for key, report in single.items():
         one, many = report.total(), fused[key].total()
         wrong = one.called_present + many.called_present
         lines.append(
             f"  {key[0]:12s}{key[1]:9s}{one.removed:8d}  {percent(one.detected, one.removed):>18s}  "
-            f"{percent(many.detected, many.removed):>18s}  {wrong:15d}  "
+            f"{percent(many.detected, many.removed):>18s}  {percent(many.in_sight_detected, many.in_sight):>18s}  "
+            f"{wrong:15d}  "
             f"{percent(one.present_called_missing + many.present_called_missing, one.present + many.present):>23s}"
             f"  {100.0 * report.aligned / max(1, report.scans):8.1f}%"
         )
@@ -391,6 +397,26 @@ class SceneRunner:
         fused_report.scans += len(used)
         fused_report.scenes += 1
         score(scene.structure, set(scene.removed), scene.expected, fused, fused_report)
+        self._score_in_sight(used, fused, fused_report)
+
+    def _score_in_sight(self, used: list[int], fused: ScanResult, report: ModeReport) -> None:
+        """Which removed tiles one of the views `used` would show with `IN_SIGHT_PIXELS` returns or
+        more, were they there, and which of those the views found: a tile behind a box nobody
+        reports, or a robot right in front of the camera, is out of every view's sight."""
+        scene, states = self.scene, (fused.by_id() if fused.ok else {})
+        for tile_id in scene.removed:
+            tiles = [scene.structure.tiles[i] for i in (*scene.present, tile_id)] + list(scene.misplaced.values())
+            shown = 0
+            for index in used:
+                view = self.first if index < 0 else self.candidates[index]
+                near = () if self.near_robots is None else (self.near_robots[index + 1],)
+                restored = KinectScene(tiles, (*scene.clutter, *scene.robots, *near))  # type: ignore[arg-type]
+                shown = max(shown, self.world.simulator.pixels_showing(restored, view.camera, tile_id))
+            if shown < IN_SIGHT_PIXELS:
+                continue
+            tally = report.by_type[type_label(scene.structure, scene.structure.tiles[tile_id].type_name)]
+            tally.in_sight += 1
+            tally.in_sight_detected += tile_id in states and states[tile_id].state == TileState.MISSING
 
 
 def misplacement_trial(
