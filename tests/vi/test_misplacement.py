@@ -458,18 +458,14 @@ def test_a_large_tile_turned_beside_few_others_is_flagged_though_it_pulls_every_
 
 
 def _inspect_recorded(name: str) -> tuple[dict, ScanResult]:
-    """A scan recorded in tests/data/vi_scans/`name` (scan.json, cloud.npz) and the inspection's result."""
+    """A scan recorded in tests/data/vi_scans/`name` (scan.json; cloud.npz: the depth image, x and y
+    as a driver rebuilds them from it) and the inspection's result."""
     folder = SCANS / name
     recorded = json.loads((folder / "scan.json").read_text())
-    stored = np.load(folder / "cloud.npz")
-    if "depth_metres" in stored:
-        depth = stored["depth_metres"]
-        k = KINECT_V1_DEPTH
-        v, u = np.mgrid[0 : k.height, 0 : k.width]
-        cloud = np.stack([(u - k.cx) * depth / k.fx, (v - k.cy) * depth / k.fy, depth], axis=-1).astype(np.float32)
-    else:
-        steps = stored["half_millimetres"]
-        cloud = np.where(steps == -32768, np.nan, steps / 2000.0).astype(np.float32)
+    depth = np.load(folder / "cloud.npz")["depth_metres"]
+    k = KINECT_V1_DEPTH
+    v, u = np.mgrid[0 : k.height, 0 : k.width]
+    cloud = np.stack([(u - k.cx) * depth / k.fx, (v - k.cy) * depth / k.fy, depth], axis=-1).astype(np.float32)
     settings = InspectionSettings().with_values({"camera_xyz": recorded["camera_xyz"],
                                                  "camera_rpy": recorded["camera_rpy"]})
     pipeline = InspectionPipeline(structure(recorded["structure"]), None, settings)
