@@ -305,7 +305,7 @@ class AuctionNode(Node):
         if msg.problem:  # a scan that gave no states says nothing about any tile
             return
         detected = time.time()
-        fresh = self.repeats.fresh_states(msg.states)
+        fresh = self.repeats.fresh_states(msg.states, msg.robot_name)
         sensing = {s.tile_id: SENSING.get(s.state, UNDETERMINED) for s in msg.states if s.tile_id in fresh}
         view = (msg.camera_pose.position.x, msg.camera_pose.position.y)
         at = stamp_to_seconds(msg.header.stamp)

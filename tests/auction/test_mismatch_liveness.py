@@ -223,3 +223,13 @@ def test_a_tile_placed_on_a_wrong_one_after_its_repair_was_auctioned_waits_for_t
     detector.placed(13, at=21.0)
     assert detector.sensed({13: MISSING}, at=22.0, view=(1.0, 0.0)) == []
     assert detector.sensed({13: MISSING}, at=23.0, view=(0.0, 1.0)) == [13]
+
+
+def test_one_vi_robots_repeats_are_not_fresh_because_another_robots_scans_came_in_between() -> None:
+    """Two VI robots on one topic: vi1's view is blocked and it repeats its stale fused "present"
+    of a tile while vi2 keeps seeing the tile missing. vi1's repeats are no new observations."""
+    repeats = RepeatFilter()
+    assert repeats.fresh({3: (4, 6045, 16)}, "vi1") == {3}
+    for scans in range(1, 5):
+        assert repeats.fresh({3: (scans, 0, 1285 * scans)}, "vi2") == {3}
+        assert repeats.fresh({3: (4, 6045, 16)}, "vi1") == set()

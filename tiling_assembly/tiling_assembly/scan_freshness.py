@@ -22,15 +22,20 @@ class TileEvidence(Protocol):
 
 @dataclass
 class RepeatFilter:
-    """Remembers each tile's last evidence; a tile is fresh when its evidence changed."""
+    """Remembers each tile's last evidence per source (the VI robot whose fused states they are); a
+    tile is fresh when its evidence from that source changed. Per source: with two VI robots on one
+    topic, one robot's repeats of a stale "present" (its view blocked by a robot) alternated with the
+    other's "missing" calls, so each repeat differed from the last message heard and counted as a new
+    observation: 93 scans called a removed block present and no missing call was confirmed in 600 s."""
 
-    last: dict[int, tuple[int, ...]] = field(default_factory=dict)
+    last: dict[tuple[str, int], tuple[int, ...]] = field(default_factory=dict)
 
-    def fresh(self, evidence: Mapping[int, tuple[int, ...]]) -> set[int]:
-        new = {tile for tile, e in evidence.items() if self.last.get(tile) != e}
-        self.last.update(evidence)
+    def fresh(self, evidence: Mapping[int, tuple[int, ...]], source: str = "") -> set[int]:
+        new = {tile for tile, e in evidence.items() if self.last.get((source, tile)) != e}
+        self.last.update(((source, tile), e) for tile, e in evidence.items())
         return new
 
-    def fresh_states(self, states: Iterable[TileEvidence]) -> set[int]:
-        """`fresh` of a `TileStateArray`'s states."""
-        return self.fresh({s.tile_id: (s.scan_count, s.physical_support, s.see_through_support) for s in states})
+    def fresh_states(self, states: Iterable[TileEvidence], source: str = "") -> set[int]:
+        """`fresh` of a `TileStateArray`'s states (`source`: its `robot_name`)."""
+        evidence = {s.tile_id: (s.scan_count, s.physical_support, s.see_through_support) for s in states}
+        return self.fresh(evidence, source)

@@ -15,6 +15,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import ReliabilityPolicy
 from std_msgs.msg import Empty, String
 
+from tiling_assembly.scan_freshness import RepeatFilter
 from tiling_assembly_msgs.msg import (
     AssemblyPlan,
     AuctionAcceptance,
@@ -57,7 +58,7 @@ class ExperimentObserver(Node):
         self.world_started = False
         self.start_sent = False
         self.complete = False
-        self.last_counts: dict[int, tuple[int, int, int]] = {}
+        self.repeats = RepeatFilter()  # fused states repeat what earlier scans of each VI robot saw
         self.heard_once: set[tuple[str, int, str]] = set()  # (topic, auction id, robot)
         self.start_pub = self.create_publisher(Empty, "/sim/start", SIM_EVENTS)
         self.create_subscription(String, "/sim/events", self.on_event, SIM_EVENTS)
@@ -158,9 +159,7 @@ class ExperimentObserver(Node):
             return  # a scan with no states: the world's verdict event records it
         states = {s.tile_id: STATE_NAMES.get(s.state, "unknown") for s in msg.states}
         # fused states repeat what earlier scans saw: a tile's counts change when this scan saw it
-        counts = {s.tile_id: (s.scan_count, s.physical_support, s.see_through_support) for s in msg.states}
-        fresh = frozenset(t for t, c in counts.items() if self.last_counts.get(t) != c)
-        self.last_counts.update(counts)
+        fresh = frozenset(self.repeats.fresh_states(msg.states, msg.robot_name))
         self.record.scans.append(Scan(t=stamp_to_seconds(msg.header.stamp), states=states, fresh=fresh))
         self.record.final_states.update(states)
 

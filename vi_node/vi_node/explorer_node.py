@@ -275,7 +275,7 @@ class ExplorerNode(Node):
 
     def on_states(self, msg: TileStateArray) -> None:
         stamp = stamp_to_seconds(msg.header.stamp)
-        seen = self.repeats.fresh_states(msg.states)
+        seen = self.repeats.fresh_states(msg.states, msg.robot_name)
         view = None if msg.problem else (msg.camera_pose.position.x, msg.camera_pose.position.y)
         self.exploration.judged({s.tile_id: STATES.get(s.state, UNKNOWN) for s in msg.states if s.tile_id in seen},
                                 stamp, view)
