@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from tiling_assembly.contacts import separation
 from tiling_assembly.geometry import PlacedTile, rotation_from_rpy, turn_symmetry
-from tiling_assembly.polygons import convex_hull_2d, counter_clockwise
+from tiling_assembly.polygons import convex_hull_2d, point_in_polygon
 from tiling_assembly.structure import Structure
 from tiling_sim.faults import SHIFT_RANGE, TURN_RANGE, mistaken_type
 from tiling_sim.kinect import ClutterBox, KinectScene, camera_pose
@@ -184,8 +184,8 @@ def outline_moved(planned: PlacedTile, placed: PlacedTile) -> float:
 
 
 def _footprints(tile: PlacedTile) -> list[Array]:
-    """The tile's convex pieces seen from above, counter-clockwise."""
-    return [counter_clockwise(convex_hull_2d(piece[:, :2])) for piece in tile.pieces]
+    """The tile's convex pieces seen from above."""
+    return [convex_hull_2d(piece[:, :2]) for piece in tile.pieces]
 
 
 def _distance_to_pieces(point: Array, pieces: list[Array]) -> float:
@@ -193,11 +193,11 @@ def _distance_to_pieces(point: Array, pieces: list[Array]) -> float:
 
 
 def _distance_to_convex(point: Array, polygon: Array) -> float:
-    """Distance from `point` to the counter-clockwise convex `polygon` (0 inside)."""
+    """Distance from `point` to the convex `polygon` (0 inside)."""
+    if point_in_polygon(point, polygon, 0.0):
+        return 0.0
     edges = np.roll(polygon, -1, axis=0) - polygon
     to_point = point - polygon
-    if np.all(edges[:, 0] * to_point[:, 1] - edges[:, 1] * to_point[:, 0] >= -1e-12):
-        return 0.0
     along = np.clip(np.einsum("ij,ij->i", to_point, edges) / np.einsum("ij,ij->i", edges, edges), 0.0, 1.0)
     return float(np.min(np.linalg.norm(to_point - along[:, None] * edges, axis=1)))
 

@@ -341,14 +341,17 @@ class SceneRunner:
         """View -1 is the first one, 0.. the candidates; each scanned once, shared by every mode."""
         view = self.first if index < 0 else self.candidates[index]
         if index not in self._scans:
-            physical = self.scene.kinect_scene
-            if self.near_robots is not None:
-                scene = self.scene
-                tiles = [scene.structure.tiles[i] for i in scene.present] + list(scene.misplaced.values())
-                extra = self.near_robots[index + 1]
-                physical = KinectScene(tiles, (*scene.clutter, *scene.robots, extra))  # type: ignore[arg-type]
+            physical = self.scene.kinect_scene if self.near_robots is None else self._world_seen_from(index)
             self._scans[index] = self.world.simulator.scan(physical, view.camera)
         return view, self._scans[index]
+
+    def _world_seen_from(self, index: int, restored: tuple[int, ...] = ()) -> KinectScene:
+        """The physical world of view `index` (with the robot right in front of its camera, if any),
+        the `restored` removed tiles put back."""
+        scene = self.scene
+        tiles = [scene.structure.tiles[i] for i in (*scene.present, *restored)] + list(scene.misplaced.values())
+        near = () if self.near_robots is None else (self.near_robots[index + 1],)
+        return KinectScene(tiles, (*scene.clutter, *scene.robots, *near))  # type: ignore[arg-type]
 
     def run(
         self, pipeline: InspectionPipeline, report: ModeReport, fused_report: ModeReport, views: int
@@ -405,13 +408,14 @@ class SceneRunner:
         reports, or a robot right in front of the camera, is out of every view's sight."""
         scene, states = self.scene, (fused.by_id() if fused.ok else {})
         for tile_id in scene.removed:
-            tiles = [scene.structure.tiles[i] for i in (*scene.present, tile_id)] + list(scene.misplaced.values())
-            shown = 0
-            for index in used:
-                view = self.first if index < 0 else self.candidates[index]
-                near = () if self.near_robots is None else (self.near_robots[index + 1],)
-                restored = KinectScene(tiles, (*scene.clutter, *scene.robots, *near))  # type: ignore[arg-type]
-                shown = max(shown, self.world.simulator.pixels_showing(restored, view.camera, tile_id))
+            shown = max(
+                self.world.simulator.pixels_showing(
+                    self._world_seen_from(index, (tile_id,)),
+                    (self.first if index < 0 else self.candidates[index]).camera,
+                    tile_id,
+                )
+                for index in used
+            )
             if shown < IN_SIGHT_PIXELS:
                 continue
             tally = report.by_type[type_label(scene.structure, scene.structure.tiles[tile_id].type_name)]
