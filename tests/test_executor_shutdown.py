@@ -139,6 +139,18 @@ def test_a_teardown_that_holds_the_interpreter_still_ends_the_process() -> None:
     assert "Timeout" in output and "destroy_node" in output
 
 
+def test_a_teardown_that_crashes_still_ends_the_process_with_one_line() -> None:
+    """Fast DDS crashed (SIGSEGV) inside rclpy's destroy_node after auction_node's work had stopped;
+    the experiment and `ros2 launch` reported the node as killed. Now: one line, the stacks, exit 0."""
+    code, output, seconds = _ctrl_c("crashing_teardown_node.py", timeout=TEARDOWN_PATIENCE + 10.0)
+    assert code == 0, output
+    assert seconds < TEARDOWN_PATIENCE, output
+    lines = output.strip().splitlines()
+    assert lines[0] == ("crashing_teardown_node: the middleware crashed while releasing the stopped node; "
+                        "exiting without it (SIGSEGV)"), output
+    assert "destroy_node" in output and "Traceback" not in output
+
+
 def test_an_interpreter_exit_that_never_ends_does_not_keep_a_stopped_node_alive() -> None:
     code, output, _ = _ctrl_c("hanging_exit_node.py", timeout=10.0)
     assert code == 0, output

@@ -46,7 +46,20 @@ def run_experiment(
     result = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=timeout)
     results_file = report / "results.json"
     data = json.loads(results_file.read_text()) if results_file.exists() else {}
+    data["log_tails"] = _log_tails_of_unclean_exits(report, data)
     return result, data
+
+
+def _log_tails_of_unclean_exits(report: Path, data: dict[str, Any], lines: int = 60) -> str:
+    """The end of each log of a node that did not stop cleanly (a crash's stacks, from the node's
+    faulthandler), for the assertion: the report folder is gone once the test ends."""
+    tails = []
+    for trial in data.get("trials", []):
+        for name in trial.get("unclean_exits", {}):
+            log = report / "logs" / f"trial_{trial['trial']:02d}" / f"{name}.log"
+            text = log.read_text(errors="replace").splitlines()[-lines:] if log.exists() else ["(no log)"]
+            tails.append(f"--- {log.name}, trial {trial['trial']}:\n" + "\n".join(text))
+    return "\n".join(tails)
 
 
 @pytest.fixture
@@ -71,7 +84,7 @@ def config_with(folder: Path, package: str, **parameters: object) -> Path:
 
 def _only_trial(data: dict) -> dict:  # type: ignore[type-arg]
     (trial,) = data["trials"]
-    assert trial["unclean_exits"] == {}, "nodes that did not stop cleanly at Ctrl-C"
+    assert trial["unclean_exits"] == {}, f"nodes that did not stop cleanly at Ctrl-C\n{data['log_tails']}"
     return trial
 
 
