@@ -38,6 +38,8 @@ class MisplacementSettings:
     reach: float = 0.04  # m, points this close to a tile (and nearest to it) are its points ...
     height_slack: float = 0.005  # m, ... unless they lie this much above its top or below its bottom
     min_points: int = 40  # fewer points: the tile cannot be judged
+    placement_share: float = 0.35  # a tile is not shown in place when under this share of the pixels it should
+    placement_judged_share: float = 0.75  # fill are decisive and under this share are judged at all
     min_off_share: float = 0.15  # refit only when this share of its points is off its faces
     improvement: float = 0.85  # the refit must bring the median distance below this share of it before ...
     min_gain: float = 0.0005  # m, ... and by this much: points already on its faces are not put better
