@@ -167,6 +167,18 @@ def other_shape(agree: int, against: int, settings: MisplacementSettings, resolu
     return agree >= share and against >= share
 
 
+def too_little_seen(decisive: int, judged: int, expected: int, settings: MisplacementSettings) -> bool:
+    """Whether a tile called present showed too little of itself to say it lies in place: few of
+    the pixels it should fill (`expected`) are decisive (`placement_share`) and a good part of them
+    are not judged at all (`placement_judged_share`: hidden behind a robot or a box, masked, too
+    oblique). What is left of such a tile may be only where its planned and its real outline
+    overlap, its edges, which would tell a turn or a shift, hidden: a cap turned 25 degrees, seen
+    past a robot on 24 of its 82 pixels (52 judged), was called present. A tile seen whole whose
+    pixels are mostly ambiguous (a 4 cm square from 1.9 m: 23 decisive of 70, 64 judged) still is.
+    Costs 2-3% of the present verdicts (vi_accuracy, two seeds)."""
+    return decisive < settings.placement_share * expected and judged < settings.placement_judged_share * expected
+
+
 def assess(scan: ScanPoints, context: PlacementContext, settings: MisplacementSettings) -> dict[int, TileFit]:
     """Judge every tile (by index into context.patches.tile_ids) from the aligned candidate points."""
     owners = _owners(scan, context, settings)

@@ -58,6 +58,7 @@ from vi_node.misplacement import (
     moved_as_one,
     other_shape,
     something_else_there,
+    too_little_seen,
 )
 from vi_node.patches import PlanarPatches
 from vi_node.periodicity import periodic_shifts
@@ -854,24 +855,11 @@ class InspectionPipeline:
         held_back += [
             tile.tile_id for index, tile in enumerate(result.tiles)
             if tile.state is TileState.PRESENT and tile.tile_id not in held_back
-            and (self._too_little_seen_to_place(tile)
+            and (too_little_seen(decisive=tile.physical + tile.see_through + tile.blank, judged=tile.judged,
+                                 expected=tile.virtual, settings=self.misplacement_settings)
                  or self._another_type_as_likely(scan, pose, index))
         ]
         return [t for t in held_back if result.by_id()[t].state is not TileState.MISPLACED]
-
-    def _too_little_seen_to_place(self, tile: TileResult) -> bool:
-        """Whether a tile called present showed too little of itself to say it lies in place: few of
-        the pixels it should fill are decisive (`placement_share`) and a good part of them are not
-        judged at all (`placement_judged_share`: hidden behind a robot or a box, masked, too
-        oblique). What is left of such a tile may be only where its planned and its real outline
-        overlap, its edges, which would tell a turn or a shift, hidden: a cap turned 25 degrees,
-        seen past a robot on 24 of its 82 pixels (52 judged), was called present. A tile seen whole
-        whose pixels are mostly ambiguous (a 4 cm square from 1.9 m: 23 decisive of 70, 64 judged)
-        still is. Costs 2-3% of the present verdicts (vi_accuracy, two seeds)."""
-        settings = self.misplacement_settings
-        decisive = tile.physical + tile.see_through + tile.blank
-        return (decisive < settings.placement_share * tile.virtual
-                and tile.judged < settings.placement_judged_share * tile.virtual)
 
     def _fitted_pose_explains(self, scan: _Scan, pose: Array, index: int, offset: tuple[float, float, float],
                               planned_agree: int) -> bool:
